@@ -1,0 +1,124 @@
+// Joins IMU samples to dwells by header stamp (DESIGN.md section 2). One implementation for the
+// calibration node and offline_fit, so online and offline agree to the last digit.
+//
+// Commands and samples may arrive out of stamp order (separate topics, transport delays, bag
+// receive order). Events wait in a reorder buffer of `reorder_window_s` and are processed in
+// stamp order once older than the newest stamp seen minus that window; memory is bounded by the
+// window, not the dwell length. At equal stamps a command goes before a sample, so a dwell is the
+// half-open interval [SETTLED, next MOVING or DONE).
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <queue>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/protocol.h"
+
+namespace accel_intrinsics {
+namespace core {
+
+enum class GimbalState : std::uint8_t { Moving = 0, Settled = 1, Done = 2 };
+
+// A GimbalCommand message, ROS-free.
+struct GimbalEvent {
+  double stamp_s = 0.0;
+  Phase phase = Phase::X;
+  std::uint32_t step = 0;
+  std::uint32_t steps = 0;
+  double angle_rad = 0.0;
+  GimbalState state = GimbalState::Moving;
+};
+
+struct ImuSample {
+  double stamp_s = 0.0;
+  Eigen::Vector3d outputs = Eigen::Vector3d::Zero();  // R_u, R_v, R_w in m/s^2
+};
+
+struct AssemblerOptions {
+  double settle_discard_s = 0.0;  // samples in the first part of each dwell are dropped
+  double reorder_window_s = 0.25;  // how late (in stamp time) a message may arrive
+};
+
+// What was dropped and why; all counts since the last reset.
+struct AssemblerCounters {
+  std::uint64_t samples_used = 0;
+  std::uint64_t dropped_outside_dwell = 0;  // MOVING, before the first command, after DONE
+  std::uint64_t dropped_settle_discard = 0;
+  std::uint64_t dropped_non_finite = 0;
+  std::uint64_t dropped_backwards = 0;  // stamp not after the previous sample's stamp
+  std::uint64_t dropped_late = 0;       // arrived after the reorder window had passed its stamp
+  std::uint64_t commands = 0;
+  std::uint64_t commands_out_of_order = 0;  // SETTLED that does not follow its MOVING, etc.
+  std::string last_warning;                 // the latest out-of-protocol event, for logs
+};
+
+class DwellAssembler {
+ public:
+  using DwellCallback = std::function<void(const DwellRecord&)>;
+
+  explicit DwellAssembler(const AssemblerOptions& options = {});
+
+  // Called for every completed dwell, in stamp order.
+  void set_dwell_callback(DwellCallback callback) { on_dwell_ = std::move(callback); }
+
+  void add_command(const GimbalEvent& event);
+  void add_sample(const ImuSample& sample);
+  // Processes everything buffered (end of a bag, or DONE plus the reorder window online).
+  void flush();
+  // Processes buffered events with stamps up to `stamp_s` (a node's timer).
+  void flush_until(double stamp_s);
+  void reset();
+
+  const PositionTable& table() const { return table_; }
+  const AssemblerCounters& counters() const { return counters_; }
+  bool done() const { return done_; }
+  // Stamp of the first gimbal command seen (NaN before any).
+  double time_origin_s() const { return table_.time_origin_s; }
+  // The dwell being accumulated (phase, step) and how many samples so far; false if none.
+  bool current_dwell(Phase* phase, std::uint32_t* step, std::uint64_t* samples) const;
+
+ private:
+  struct Event {
+    double stamp_s;
+    std::uint64_t sequence;  // arrival order, breaks ties
+    bool is_command;
+    GimbalEvent command;
+    ImuSample sample;
+  };
+  struct Later {
+    bool operator()(const Event& a, const Event& b) const;
+  };
+
+  void push(Event event);
+  void release_until(double stamp_s);
+  void process(const Event& event);
+  void process_command(const GimbalEvent& command);
+  void process_sample(const ImuSample& sample);
+  void close_dwell(double end_stamp_s);
+
+  AssemblerOptions options_;
+  DwellCallback on_dwell_;
+  std::priority_queue<Event, std::vector<Event>, Later> pending_;
+  std::uint64_t next_sequence_ = 0;
+  double newest_stamp_s_;
+  double released_until_s_;
+  double last_sample_stamp_s_;
+
+  // Dwell state (in stamp order).
+  bool have_moving_ = false;
+  GimbalEvent last_moving_;
+  bool in_dwell_ = false;
+  GimbalEvent dwell_command_;
+  DwellAccumulator accumulator_;
+  bool done_ = false;
+
+  PositionTable table_;
+  AssemblerCounters counters_;
+};
+
+}  // namespace core
+}  // namespace accel_intrinsics

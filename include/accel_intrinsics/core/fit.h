@@ -1,0 +1,92 @@
+// Fits of the rig model to a position table (DESIGN.md section 1, "Models to fit").
+//   joint (default): one vector and one offset per accelerometer from all 9N dwell means,
+//                    weighted by the dwell standard errors; closed-form linear least squares,
+//                    or Ceres when effect terms are added.
+//   eq4:             the seed as written: per accelerometer and phase R = s_a g sin a +
+//                    s_b g cos a + O_up; each vector component is estimated twice and the two
+//                    combined by inverse-variance weight; O_u = mean of O_up (seed eq. 5).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/core/effects.h"
+#include "accel_intrinsics/core/intrinsics.h"
+#include "accel_intrinsics/core/position_table.h"
+
+namespace accel_intrinsics {
+namespace core {
+
+enum class FitModel { Joint, Eq4 };
+const char* model_name(FitModel model);
+// "joint" or "eq4"; throws std::invalid_argument otherwise.
+FitModel parse_model(const std::string& name);
+
+struct FitOptions {
+  FitModel model = FitModel::Joint;
+  double local_gravity = kStandardGravity;  // m/s^2
+  // Effect terms to fit together with S and O (joint model only). Each Effect's value is the
+  // starting guess; the fitted values come back in FitResult::effects.
+  std::vector<Effect> effects;
+  int min_positions_per_phase = 3;
+};
+
+// Throws FitError with a message that names the phase, the row or the field.
+class FitError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct FitResult {
+  FitModel model = FitModel::Joint;
+  double local_gravity = kStandardGravity;
+
+  Eigen::Matrix3d S = Eigen::Matrix3d::Identity();  // rows u, v, w
+  Eigen::Vector3d O = Eigen::Vector3d::Zero();
+  Eigen::Vector3d O_std = Eigen::Vector3d::Zero();
+  // Covariance of (S row-major, O): 12x12.
+  Eigen::Matrix<double, 12, 12> covariance = Eigen::Matrix<double, 12, 12>::Zero();
+
+  // O_up: row = accelerometer u/v/w, column = phase x/y/z. For joint, each entry is O_u.
+  Eigen::Matrix3d offset_per_phase = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d offset_per_phase_std = Eigen::Matrix3d::Zero();
+
+  Intrinsics intrinsics;
+  Eigen::Matrix3d cross_sensitivity = Eigen::Matrix3d::Identity();  // P = S^-1
+  Eigen::Matrix3d cross_sensitivity_std = Eigen::Matrix3d::Zero();
+
+  // Fitted effect terms (value = estimate) and their standard uncertainties.
+  std::vector<Effect> effects;
+  std::vector<double> effects_std;
+
+  double chi2 = 0.0;           // sum of squared normalized residuals
+  int dof = 0;                 // residuals minus parameters
+  double reduced_chi2 = 0.0;   // chi2 / dof
+  double residual_rms = 0.0;   // RMS of the unnormalized residuals, m/s^2
+  std::array<int, 3> positions{{0, 0, 0}};
+
+  // Per row of the table: measured minus model (m/s^2), and the standard error used as weight.
+  std::vector<Eigen::Vector3d> residuals;
+  std::vector<Eigen::Vector3d> standard_errors;
+
+  // Ceres' brief report for fits with effect terms (empty for the closed-form fits).
+  std::string solver_message;
+
+  // Human-readable model description, e.g. "joint" or "joint+quadratic_nonlinearity[u]".
+  std::string model_label() const;
+};
+
+// Validates the table (finite values, at least min_positions_per_phase dwells per phase, a
+// geometry that determines every vector component) and fits. Throws FitError otherwise.
+FitResult fit(const PositionTable& table, const FitOptions& options = {});
+
+// Standard error of each dwell mean (std / sqrt(n)); rows with n < 2 or zero std get the median
+// of the other rows of the same accelerometer (all zero: unit weights, noise-free data).
+std::vector<Eigen::Vector3d> dwell_standard_errors(const PositionTable& table);
+
+}  // namespace core
+}  // namespace accel_intrinsics

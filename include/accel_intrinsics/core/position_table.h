@@ -1,0 +1,82 @@
+// Dwell means: the streaming accumulator, the position table and its CSV form
+// (DESIGN.md section 2: phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <iosfwd>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/core/model.h"
+#include "accel_intrinsics/core/protocol.h"
+
+namespace accel_intrinsics {
+namespace core {
+
+// Numerically stable running mean and variance (Welford), constant memory.
+class DwellAccumulator {
+ public:
+  void add(const Eigen::Vector3d& outputs);
+  void reset();
+  std::uint64_t count() const { return n_; }
+  Eigen::Vector3d mean() const { return mean_; }
+  // Sample standard deviation (n - 1 denominator); zero for fewer than two samples.
+  Eigen::Vector3d sample_std() const;
+
+ private:
+  std::uint64_t n_ = 0;
+  Eigen::Vector3d mean_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d m2_ = Eigen::Vector3d::Zero();
+};
+
+// One row of the position table: the statistics of one dwell.
+struct DwellRecord {
+  Phase phase = Phase::X;
+  std::uint32_t step = 0;
+  double angle_rad = 0.0;
+  double t_start_s = 0.0;
+  double t_end_s = 0.0;
+  std::uint64_t n = 0;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();  // R_u, R_v, R_w, m/s^2
+  Eigen::Vector3d std = Eigen::Vector3d::Zero();   // sample standard deviation, m/s^2
+};
+
+struct PositionTable {
+  std::vector<DwellRecord> rows;
+  // t0 of the drift term: the first gimbal command when known (bags, the node, the simulator);
+  // NaN means "unknown", and the earliest t_start is used instead (a CSV from elsewhere).
+  double time_origin_s = std::numeric_limits<double>::quiet_NaN();
+};
+
+class PositionTableError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// The CSV header line, exactly as in the contract.
+extern const char* const kPositionTableHeader;
+
+// Reads a position table. Throws PositionTableError naming the line number and the field for a
+// missing header, wrong column count, unparsable or non-finite number, unknown phase, n = 0.
+PositionTable read_position_table(std::istream& in, const std::string& source_name = "CSV");
+PositionTable read_position_table_file(const std::string& path);
+// Writes with full double precision (round trip exact).
+void write_position_table(std::ostream& out, const PositionTable& table);
+void write_position_table_file(const std::string& path, const PositionTable& table);
+// Appends one row (no header) and flushes: the checkpoint of a completed dwell.
+void write_position_row(std::ostream& out, const DwellRecord& row);
+
+// The model geometry of each row: mid-dwell time relative to t0, and the direction of approach,
+// inferred from the order of rows in each phase (the first visit of a phase counts as +1).
+std::vector<DwellGeometry> dwell_geometries(const PositionTable& table);
+double effective_time_origin(const PositionTable& table);
+
+// Dwells per phase.
+std::array<int, 3> positions_per_phase(const PositionTable& table);
+
+}  // namespace core
+}  // namespace accel_intrinsics

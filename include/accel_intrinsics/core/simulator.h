@@ -1,0 +1,61 @@
+// The simulated test stand: a truth device on the schedule of protocol.h, evaluated with the
+// rig model of model.h, with white noise and optional quantization. Seeded and reproducible.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/core/dwell_assembler.h"
+#include "accel_intrinsics/core/model.h"
+#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/protocol.h"
+
+namespace accel_intrinsics {
+namespace core {
+
+struct SimulationOptions {
+  Device truth;                          // S, O and effect terms (all of them, incl. gimbal side)
+  ProtocolOptions protocol;
+  double rate_hz = 100.0;                // IMU sample rate
+  double noise_density = 300e-6 * kStandardGravity;  // (m/s^2)/sqrt(Hz), white
+  double quantization = 0.0;             // LSB in m/s^2; 0 = none
+  double local_gravity = kStandardGravity;
+  std::uint64_t seed = 1;
+};
+
+// Per-sample noise standard deviation: noise_density * sqrt(rate_hz / 2).
+double sample_noise_std(const SimulationOptions& options);
+
+// Throws std::invalid_argument naming the field.
+void validate(const SimulationOptions& options);
+
+// Dwell means drawn directly from their exact distributions (mean: normal with sigma/sqrt(n);
+// sample std: sigma * sqrt(chi2(n-1)/(n-1))), model evaluated at mid-dwell. Fast: use for Monte
+// Carlo. Quantization and timing lag are ignored here (use simulate_recording).
+PositionTable simulate_position_table(const SimulationOptions& options);
+
+// Raw streams: gimbal events and IMU samples as the nodes would publish them, including the
+// samples taken while moving (angle interpolated along the move) and timing lag (stamps late).
+struct Recording {
+  std::vector<GimbalEvent> commands;
+  std::vector<ImuSample> samples;
+};
+Recording simulate_recording(const SimulationOptions& options);
+
+// Feeds a recording to an assembler in stamp order (a command before a sample at equal stamps),
+// as a recorded run would arrive, then flushes it.
+void feed_in_stamp_order(const Recording& recording, DwellAssembler* assembler);
+
+// Commanded gimbal angle along the schedule at time t (seconds since the first MOVING): the
+// phase, the angle (smooth move between steps), and whether the gimbal is at rest.
+struct GimbalPose {
+  Phase phase = Phase::X;
+  double angle_rad = 0.0;
+  int approach = +1;
+  bool at_rest = false;
+};
+GimbalPose gimbal_pose_at(const std::vector<ScheduledPosition>& schedule, double t_s);
+
+}  // namespace core
+}  // namespace accel_intrinsics

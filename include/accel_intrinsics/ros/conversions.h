@@ -1,0 +1,27 @@
+// Conversions between ROS messages and the ROS-free core types. The only place that knows both.
+#pragma once
+
+#include <sensor_msgs/Imu.h>
+
+#include <string>
+
+#include "accel_intrinsics/GimbalCommand.h"
+#include "accel_intrinsics/IntrinsicResult.h"
+#include "accel_intrinsics/core/dwell_assembler.h"
+#include "accel_intrinsics/core/fit.h"
+
+namespace accel_intrinsics {
+
+core::GimbalEvent to_core(const GimbalCommand& msg);
+GimbalCommand to_msg(const core::GimbalEvent& event);
+
+// linear_acceleration x, y, z carry R_u, R_v, R_w.
+core::ImuSample to_core(const sensor_msgs::Imu& msg);
+// Fills the contract: orientation_covariance[0] = -1 and angular_velocity_covariance[0] = -1;
+// linear_acceleration_covariance diagonal = variance_per_axis (0 = unknown).
+sensor_msgs::Imu to_msg(const core::ImuSample& sample, const std::string& frame_id,
+                        double variance_per_axis = 0.0);
+
+IntrinsicResult to_msg(const core::FitResult& result);
+
+}  // namespace accel_intrinsics

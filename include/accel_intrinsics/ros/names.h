@@ -1,0 +1,29 @@
+// Topic, service and node names, all relative so they remap and namespace (DESIGN.md section 2).
+#pragma once
+
+namespace accel_intrinsics {
+namespace names {
+
+constexpr char kGimbalCommandTopic[] = "gimbal/command";
+constexpr char kImuTopic[] = "imu/data_raw";
+constexpr char kResultTopic[] = "calibration/result";
+constexpr char kStartService[] = "gimbal_controller/start";
+constexpr char kAbortService[] = "gimbal_controller/abort";
+constexpr char kResetService[] = "calibration/reset";
+constexpr char kGetIntrinsicsService[] = "calibration/get_intrinsics";
+// Not in the contract table, added by the online stand (additive):
+// tf is published on the relative topic "tf" (resolves to /tf without a namespace) so that two
+// rigs in two namespaces do not mix their world -> gimbal -> dut chains.
+constexpr char kTfTopic[] = "tf";
+// diagnostic_msgs/DiagnosticStatus: state, phase, step, positions done/total, time left.
+constexpr char kProgressTopic[] = "gimbal_controller/progress";
+// diagnostic_msgs/DiagnosticStatus: dwells per phase and the dropped-sample counters.
+constexpr char kCalibrationStatusTopic[] = "calibration/status";
+constexpr char kClockTopic[] = "/clock";
+
+constexpr char kWorldFrame[] = "world";
+constexpr char kGimbalFrame[] = "gimbal";
+constexpr char kDutFrame[] = "dut";
+
+}  // namespace names
+}  // namespace accel_intrinsics

@@ -1,0 +1,191 @@
+#include "accel_intrinsics/core/dwell_assembler.h"
+
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+namespace accel_intrinsics {
+namespace core {
+
+namespace {
+constexpr double kNegInf = -std::numeric_limits<double>::infinity();
+
+std::string describe(const GimbalEvent& e) {
+  static const char* const kStates[] = {"MOVING", "SETTLED", "DONE"};
+  std::ostringstream s;
+  s << kStates[static_cast<int>(e.state) % 3] << " (phase " << phase_name(e.phase) << ", step " << e.step
+    << ") at t=" << e.stamp_s;
+  return s.str();
+}
+}  // namespace
+
+bool DwellAssembler::Later::operator()(const Event& a, const Event& b) const {
+  // Min-heap on stamp; at equal stamps a command before a sample, then arrival order.
+  if (a.stamp_s != b.stamp_s) return a.stamp_s > b.stamp_s;
+  if (a.is_command != b.is_command) return !a.is_command;
+  return a.sequence > b.sequence;
+}
+
+DwellAssembler::DwellAssembler(const AssemblerOptions& options) : options_(options) { reset(); }
+
+void DwellAssembler::reset() {
+  pending_ = decltype(pending_)();
+  next_sequence_ = 0;
+  newest_stamp_s_ = kNegInf;
+  released_until_s_ = kNegInf;
+  last_sample_stamp_s_ = kNegInf;
+  have_moving_ = false;
+  in_dwell_ = false;
+  accumulator_.reset();
+  done_ = false;
+  table_ = PositionTable();
+  counters_ = AssemblerCounters();
+}
+
+void DwellAssembler::add_command(const GimbalEvent& event) {
+  ++counters_.commands;
+  if (!std::isfinite(event.stamp_s) || !std::isfinite(event.angle_rad)) {
+    ++counters_.commands_out_of_order;
+    counters_.last_warning = "gimbal command with a non-finite stamp or angle ignored";
+    return;
+  }
+  if (event.stamp_s < released_until_s_) {
+    // Too late to put in order: the samples around it have been assigned already.
+    ++counters_.commands_out_of_order;
+    counters_.last_warning = "gimbal command " + describe(event) + " arrived after its stamp was processed";
+  }
+  Event e{event.stamp_s, next_sequence_++, true, event, ImuSample()};
+  push(e);
+}
+
+void DwellAssembler::add_sample(const ImuSample& sample) {
+  if (!std::isfinite(sample.stamp_s) || !sample.outputs.allFinite()) {
+    ++counters_.dropped_non_finite;
+    return;
+  }
+  if (sample.stamp_s <= last_sample_stamp_s_) {
+    ++counters_.dropped_backwards;
+    return;
+  }
+  last_sample_stamp_s_ = sample.stamp_s;
+  if (sample.stamp_s < released_until_s_) {
+    ++counters_.dropped_late;
+    return;
+  }
+  Event e{sample.stamp_s, next_sequence_++, false, GimbalEvent(), sample};
+  push(e);
+}
+
+void DwellAssembler::push(Event event) {
+  if (event.stamp_s > newest_stamp_s_) newest_stamp_s_ = event.stamp_s;
+  if (event.stamp_s < released_until_s_) {
+    process(event);  // a late command: best effort, already counted
+    return;
+  }
+  pending_.push(std::move(event));
+  release_until(newest_stamp_s_ - options_.reorder_window_s);
+}
+
+void DwellAssembler::flush_until(double stamp_s) { release_until(stamp_s); }
+
+void DwellAssembler::flush() { release_until(std::numeric_limits<double>::infinity()); }
+
+void DwellAssembler::release_until(double stamp_s) {
+  while (!pending_.empty() && pending_.top().stamp_s <= stamp_s) {
+    const Event event = pending_.top();
+    pending_.pop();
+    if (event.stamp_s > released_until_s_) released_until_s_ = event.stamp_s;
+    process(event);
+  }
+  if (stamp_s > released_until_s_ && pending_.empty() && std::isfinite(stamp_s)) released_until_s_ = stamp_s;
+}
+
+void DwellAssembler::process(const Event& event) {
+  if (event.is_command) process_command(event.command);
+  else process_sample(event.sample);
+}
+
+void DwellAssembler::process_command(const GimbalEvent& command) {
+  if (!std::isfinite(table_.time_origin_s)) table_.time_origin_s = command.stamp_s;
+  if (done_) {
+    ++counters_.commands_out_of_order;
+    counters_.last_warning = "gimbal command " + describe(command) + " after DONE ignored (call reset first)";
+    return;
+  }
+  switch (command.state) {
+    case GimbalState::Moving:
+      if (in_dwell_) close_dwell(command.stamp_s);
+      have_moving_ = true;
+      last_moving_ = command;
+      break;
+    case GimbalState::Settled:
+      if (in_dwell_) {
+        ++counters_.commands_out_of_order;
+        counters_.last_warning = "gimbal command " + describe(command) + " while already settled: previous dwell closed";
+        close_dwell(command.stamp_s);
+      } else if (!have_moving_ || last_moving_.phase != command.phase || last_moving_.step != command.step) {
+        ++counters_.commands_out_of_order;
+        counters_.last_warning = "gimbal command " + describe(command) + " without a MOVING to the same position";
+      }
+      in_dwell_ = true;
+      dwell_command_ = command;
+      accumulator_.reset();
+      have_moving_ = false;
+      break;
+    case GimbalState::Done:
+      if (in_dwell_) close_dwell(command.stamp_s);
+      done_ = true;
+      break;
+    default:
+      ++counters_.commands_out_of_order;
+      counters_.last_warning = "gimbal command with unknown state ignored";
+      break;
+  }
+}
+
+void DwellAssembler::process_sample(const ImuSample& sample) {
+  if (!in_dwell_) {
+    ++counters_.dropped_outside_dwell;
+    return;
+  }
+  if (sample.stamp_s < dwell_command_.stamp_s + options_.settle_discard_s) {
+    ++counters_.dropped_settle_discard;
+    return;
+  }
+  accumulator_.add(sample.outputs);
+  ++counters_.samples_used;
+}
+
+void DwellAssembler::close_dwell(double end_stamp_s) {
+  in_dwell_ = false;
+  if (accumulator_.count() == 0) {
+    std::ostringstream s;
+    s << "dwell (phase " << phase_name(dwell_command_.phase) << ", step " << dwell_command_.step
+      << ") ended with no samples; not recorded";
+    counters_.last_warning = s.str();
+    return;
+  }
+  DwellRecord row;
+  row.phase = dwell_command_.phase;
+  row.step = dwell_command_.step;
+  row.angle_rad = dwell_command_.angle_rad;
+  row.t_start_s = dwell_command_.stamp_s + options_.settle_discard_s;
+  row.t_end_s = end_stamp_s;
+  row.n = accumulator_.count();
+  row.mean = accumulator_.mean();
+  row.std = accumulator_.sample_std();
+  table_.rows.push_back(row);
+  accumulator_.reset();
+  if (on_dwell_) on_dwell_(row);
+}
+
+bool DwellAssembler::current_dwell(Phase* phase, std::uint32_t* step, std::uint64_t* samples) const {
+  if (!in_dwell_) return false;
+  if (phase) *phase = dwell_command_.phase;
+  if (step) *step = dwell_command_.step;
+  if (samples) *samples = accumulator_.count();
+  return true;
+}
+
+}  // namespace core
+}  // namespace accel_intrinsics

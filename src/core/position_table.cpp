@@ -1,0 +1,215 @@
+#include "accel_intrinsics/core/position_table.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <iomanip>
+#include <istream>
+#include <limits>
+#include <ostream>
+#include <sstream>
+
+namespace accel_intrinsics {
+namespace core {
+
+// ---- DwellAccumulator (Welford) ----------------------------------------------------------------
+
+void DwellAccumulator::add(const Eigen::Vector3d& outputs) {
+  ++n_;
+  const Eigen::Vector3d delta = outputs - mean_;
+  mean_ += delta / static_cast<double>(n_);
+  m2_ += delta.cwiseProduct(outputs - mean_);
+}
+
+void DwellAccumulator::reset() {
+  n_ = 0;
+  mean_.setZero();
+  m2_.setZero();
+}
+
+Eigen::Vector3d DwellAccumulator::sample_std() const {
+  if (n_ < 2) return Eigen::Vector3d::Zero();
+  return (m2_ / static_cast<double>(n_ - 1)).cwiseMax(0.0).cwiseSqrt();
+}
+
+// ---- CSV ---------------------------------------------------------------------------------------
+
+const char* const kPositionTableHeader = "phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w";
+
+namespace {
+
+constexpr int kColumns = 12;
+const char* const kColumnNames[kColumns] = {"phase",  "step",   "angle_rad", "t_start", "t_end", "n",
+                                            "mean_u", "mean_v", "mean_w",    "std_u",   "std_v", "std_w"};
+
+std::string trim(const std::string& s) {
+  const auto begin = s.find_first_not_of(" \t\r\n");
+  if (begin == std::string::npos) return "";
+  const auto end = s.find_last_not_of(" \t\r\n");
+  return s.substr(begin, end - begin + 1);
+}
+
+[[noreturn]] void fail(const std::string& source, std::size_t line, const std::string& what) {
+  throw PositionTableError(source + " line " + std::to_string(line) + ": " + what);
+}
+
+double parse_double(const std::string& field, const std::string& source, std::size_t line, int column) {
+  const std::string text = trim(field);
+  char* end = nullptr;
+  errno = 0;
+  const double value = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || errno == ERANGE) {
+    fail(source, line, std::string("field ") + kColumnNames[column] + " is not a number: '" + text + "'");
+  }
+  if (!std::isfinite(value)) fail(source, line, std::string("field ") + kColumnNames[column] + " is not finite");
+  return value;
+}
+
+std::uint64_t parse_count(const std::string& field, const std::string& source, std::size_t line, int column) {
+  const std::string text = trim(field);
+  if (text.empty() || text.find_first_not_of("0123456789") != std::string::npos) {
+    fail(source, line,
+         std::string("field ") + kColumnNames[column] + " must be a non-negative integer, got '" + text + "'");
+  }
+  errno = 0;
+  const unsigned long long value = std::strtoull(text.c_str(), nullptr, 10);
+  if (errno == ERANGE) fail(source, line, std::string("field ") + kColumnNames[column] + " is too large");
+  return value;
+}
+
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> fields;
+  std::string field;
+  std::istringstream stream(line);
+  while (std::getline(stream, field, ',')) fields.push_back(field);
+  if (!line.empty() && line.back() == ',') fields.emplace_back();
+  return fields;
+}
+
+}  // namespace
+
+PositionTable read_position_table(std::istream& in, const std::string& source_name) {
+  PositionTable table;
+  std::string line;
+  std::size_t line_number = 0;
+  bool have_header = false;
+  while (std::getline(in, line)) {
+    ++line_number;
+    const std::string text = trim(line);
+    if (text.empty() || text[0] == '#') continue;
+    if (!have_header) {
+      if (text != kPositionTableHeader) {
+        fail(source_name, line_number, std::string("expected the header '") + kPositionTableHeader + "'");
+      }
+      have_header = true;
+      continue;
+    }
+    const std::vector<std::string> fields = split(text);
+    if (static_cast<int>(fields.size()) != kColumns) {
+      fail(source_name, line_number,
+           "expected " + std::to_string(kColumns) + " fields, found " + std::to_string(fields.size()));
+    }
+    DwellRecord row;
+    if (!parse_phase(trim(fields[0]), &row.phase)) {
+      fail(source_name, line_number, "field phase must be x, y or z, got '" + trim(fields[0]) + "'");
+    }
+    const std::uint64_t step = parse_count(fields[1], source_name, line_number, 1);
+    if (step > std::numeric_limits<std::uint32_t>::max()) fail(source_name, line_number, "field step is too large");
+    row.step = static_cast<std::uint32_t>(step);
+    row.angle_rad = parse_double(fields[2], source_name, line_number, 2);
+    row.t_start_s = parse_double(fields[3], source_name, line_number, 3);
+    row.t_end_s = parse_double(fields[4], source_name, line_number, 4);
+    if (row.t_end_s < row.t_start_s) fail(source_name, line_number, "field t_end is before t_start");
+    row.n = parse_count(fields[5], source_name, line_number, 5);
+    if (row.n == 0) fail(source_name, line_number, "field n is 0: a dwell without samples has no mean");
+    for (int k = 0; k < 3; ++k) row.mean(k) = parse_double(fields[6 + k], source_name, line_number, 6 + k);
+    for (int k = 0; k < 3; ++k) {
+      row.std(k) = parse_double(fields[9 + k], source_name, line_number, 9 + k);
+      if (row.std(k) < 0.0) fail(source_name, line_number, std::string("field ") + kColumnNames[9 + k] + " is negative");
+    }
+    table.rows.push_back(row);
+  }
+  if (!have_header) throw PositionTableError(source_name + ": empty, expected the header '" + kPositionTableHeader + "'");
+  return table;
+}
+
+PositionTable read_position_table_file(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw PositionTableError("cannot open position table '" + path + "'");
+  return read_position_table(in, path);
+}
+
+void write_position_row(std::ostream& out, const DwellRecord& row) {
+  const auto precision = out.precision(std::numeric_limits<double>::max_digits10);
+  out << phase_name(row.phase) << ',' << row.step << ',' << row.angle_rad << ',' << row.t_start_s << ','
+      << row.t_end_s << ',' << row.n;
+  for (int k = 0; k < 3; ++k) out << ',' << row.mean(k);
+  for (int k = 0; k < 3; ++k) out << ',' << row.std(k);
+  out << '\n';
+  out.flush();
+  out.precision(precision);
+}
+
+void write_position_table(std::ostream& out, const PositionTable& table) {
+  out << kPositionTableHeader << '\n';
+  for (const DwellRecord& row : table.rows) write_position_row(out, row);
+}
+
+void write_position_table_file(const std::string& path, const PositionTable& table) {
+  std::ofstream out(path);
+  if (!out) throw PositionTableError("cannot write position table '" + path + "'");
+  write_position_table(out, table);
+  if (!out) throw PositionTableError("error while writing position table '" + path + "'");
+}
+
+// ---- Geometry ----------------------------------------------------------------------------------
+
+double effective_time_origin(const PositionTable& table) {
+  if (std::isfinite(table.time_origin_s)) return table.time_origin_s;
+  double t0 = std::numeric_limits<double>::infinity();
+  for (const DwellRecord& row : table.rows) t0 = std::min(t0, row.t_start_s);
+  return std::isfinite(t0) ? t0 : 0.0;
+}
+
+std::vector<DwellGeometry> dwell_geometries(const PositionTable& table) {
+  const double t0 = effective_time_origin(table);
+  std::vector<DwellGeometry> geometries;
+  geometries.reserve(table.rows.size());
+  // Direction of approach per phase, from the order of visits: increasing angle = +1,
+  // decreasing = -1, and a repeated angle means the sweep reversed there.
+  bool seen[3] = {false, false, false};
+  double previous_angle[3] = {0, 0, 0};
+  int previous_approach[3] = {+1, +1, +1};
+  for (const DwellRecord& row : table.rows) {
+    const int p = index(row.phase);
+    DwellGeometry geom;
+    geom.phase = row.phase;
+    geom.angle_rad = row.angle_rad;
+    geom.time_s = 0.5 * (row.t_start_s + row.t_end_s) - t0;
+    if (!seen[p]) {
+      geom.approach = +1;
+    } else if (row.angle_rad > previous_angle[p]) {
+      geom.approach = +1;
+    } else if (row.angle_rad < previous_angle[p]) {
+      geom.approach = -1;
+    } else {
+      geom.approach = -previous_approach[p];
+    }
+    seen[p] = true;
+    previous_angle[p] = row.angle_rad;
+    previous_approach[p] = geom.approach;
+    geometries.push_back(geom);
+  }
+  return geometries;
+}
+
+std::array<int, 3> positions_per_phase(const PositionTable& table) {
+  std::array<int, 3> counts{{0, 0, 0}};
+  for (const DwellRecord& row : table.rows) ++counts[index(row.phase)];
+  return counts;
+}
+
+}  // namespace core
+}  // namespace accel_intrinsics

@@ -1,0 +1,190 @@
+#include "accel_intrinsics/core/simulator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <string>
+
+namespace accel_intrinsics {
+namespace core {
+
+double sample_noise_std(const SimulationOptions& options) {
+  // White noise of density n_d over the Nyquist band fs/2.
+  return options.noise_density * std::sqrt(0.5 * options.rate_hz);
+}
+
+void validate(const SimulationOptions& options) {
+  validate(options.truth);
+  validate(options.protocol);
+  if (!std::isfinite(options.rate_hz) || options.rate_hz <= 0.0) {
+    throw std::invalid_argument("simulation: rate_hz must be positive, got " + std::to_string(options.rate_hz));
+  }
+  if (!std::isfinite(options.noise_density) || options.noise_density < 0.0) {
+    throw std::invalid_argument("simulation: noise_density must be non-negative, got " +
+                                std::to_string(options.noise_density));
+  }
+  if (!std::isfinite(options.quantization) || options.quantization < 0.0) {
+    throw std::invalid_argument("simulation: quantization must be non-negative");
+  }
+  if (!std::isfinite(options.local_gravity) || options.local_gravity <= 0.0) {
+    throw std::invalid_argument("simulation: local_gravity must be positive");
+  }
+  if (options.rate_hz * options.protocol.dwell_s < 2.0) {
+    throw std::invalid_argument("simulation: dwell_s * rate_hz must give at least two samples per dwell");
+  }
+}
+
+namespace {
+
+// Number of sample stamps k / rate in [t_start, t_end).
+std::uint64_t samples_in_window(double t_start, double t_end, double rate_hz) {
+  const double first = std::ceil(t_start * rate_hz - 1e-9);
+  const double end = std::ceil(t_end * rate_hz - 1e-9);
+  return end > first ? static_cast<std::uint64_t>(end - first) : 0;
+}
+
+double timing_lag_s(const Device& device) {
+  double lag = 0.0;
+  for (const Effect& e : device.effects) {
+    if (e.kind == EffectKind::TimingLag) lag += e.value;
+  }
+  return lag;
+}
+
+}  // namespace
+
+GimbalPose gimbal_pose_at(const std::vector<ScheduledPosition>& schedule, double t_s) {
+  GimbalPose pose;
+  if (schedule.empty()) return pose;
+  // The last position whose move has started.
+  auto it = std::upper_bound(schedule.begin(), schedule.end(), t_s,
+                             [](double t, const ScheduledPosition& p) { return t < p.move_start_s; });
+  if (it == schedule.begin()) {
+    pose.phase = schedule.front().phase;
+    pose.angle_rad = schedule.front().angle_rad;
+    pose.approach = schedule.front().approach;
+    pose.at_rest = true;
+    return pose;
+  }
+  const std::size_t i = static_cast<std::size_t>(std::distance(schedule.begin(), it)) - 1;
+  const ScheduledPosition& target = schedule[i];
+  pose.phase = target.phase;
+  pose.approach = target.approach;
+  pose.angle_rad = target.angle_rad;
+  pose.at_rest = t_s >= target.settled_s;
+  // Between MOVING and SETTLED the gimbal travels (within a phase) along a smooth profile.
+  const bool same_phase = i > 0 && schedule[i - 1].phase == target.phase;
+  const double travel_s = target.settled_s - target.move_start_s;
+  if (same_phase && travel_s > 0.0 && t_s < target.settled_s) {
+    const double from = schedule[i - 1].angle_rad;
+    // Smooth (raised-cosine) profile over the whole move-and-settle interval.
+    const double fraction = std::min(1.0, std::max(0.0, (t_s - target.move_start_s) / travel_s));
+    const double s = 0.5 - 0.5 * std::cos(fraction * kPi);
+    pose.angle_rad = from + (target.angle_rad - from) * s;
+  }
+  return pose;
+}
+
+PositionTable simulate_position_table(const SimulationOptions& options) {
+  validate(options);
+  const std::vector<ScheduledPosition> schedule = build_schedule(options.protocol);
+  std::mt19937_64 rng(options.seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const double sigma = sample_noise_std(options);
+  PositionTable table;
+  table.time_origin_s = 0.0;
+  table.rows.reserve(schedule.size());
+  for (const ScheduledPosition& position : schedule) {
+    DwellRecord row;
+    row.phase = position.phase;
+    row.step = position.step;
+    row.angle_rad = position.angle_rad;
+    row.t_start_s = position.settled_s;
+    row.t_end_s = position.dwell_end_s;
+    row.n = samples_in_window(row.t_start_s, row.t_end_s, options.rate_hz);
+    DwellGeometry geom;
+    geom.phase = position.phase;
+    geom.angle_rad = position.angle_rad;
+    geom.time_s = 0.5 * (row.t_start_s + row.t_end_s);
+    geom.approach = position.approach;
+    const Eigen::Vector3d truth = predict_outputs(options.truth, geom, options.local_gravity);
+    const double n = static_cast<double>(row.n);
+    for (int k = 0; k < 3; ++k) {
+      row.mean(k) = truth(k) + sigma / std::sqrt(n) * normal(rng);
+      if (row.n >= 2 && sigma > 0.0) {
+        std::chi_squared_distribution<double> chi2(n - 1.0);
+        row.std(k) = sigma * std::sqrt(chi2(rng) / (n - 1.0));
+      }
+    }
+    table.rows.push_back(row);
+  }
+  return table;
+}
+
+Recording simulate_recording(const SimulationOptions& options) {
+  validate(options);
+  const std::vector<ScheduledPosition> schedule = build_schedule(options.protocol);
+  std::mt19937_64 rng(options.seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const double sigma = sample_noise_std(options);
+  const double lag = timing_lag_s(options.truth);
+
+  Recording recording;
+  recording.commands.reserve(2 * schedule.size() + 1);
+  for (const ScheduledPosition& position : schedule) {
+    GimbalEvent event;
+    event.phase = position.phase;
+    event.step = position.step;
+    event.steps = position.steps;
+    event.angle_rad = position.angle_rad;
+    event.stamp_s = position.move_start_s;
+    event.state = GimbalState::Moving;
+    recording.commands.push_back(event);
+    event.stamp_s = position.settled_s;
+    event.state = GimbalState::Settled;
+    recording.commands.push_back(event);
+  }
+  GimbalEvent done = recording.commands.back();
+  done.stamp_s = schedule.back().dwell_end_s;
+  done.state = GimbalState::Done;
+  recording.commands.push_back(done);
+
+  const double end_s = schedule.back().dwell_end_s;
+  const auto count = static_cast<std::uint64_t>(std::floor(end_s * options.rate_hz));
+  recording.samples.reserve(count + 1);
+  for (std::uint64_t k = 0; k <= count; ++k) {
+    const double t_true = static_cast<double>(k) / options.rate_hz;
+    const GimbalPose pose = gimbal_pose_at(schedule, t_true);
+    DwellGeometry geom;
+    geom.phase = pose.phase;
+    geom.angle_rad = pose.angle_rad;
+    geom.time_s = t_true;
+    geom.approach = pose.approach;
+    ImuSample sample;
+    sample.stamp_s = t_true + lag;  // timing_lag: the IMU stamps its samples late
+    sample.outputs = predict_outputs(options.truth, geom, options.local_gravity);
+    for (int i = 0; i < 3; ++i) {
+      double value = sample.outputs(i) + sigma * normal(rng);
+      if (options.quantization > 0.0) value = options.quantization * std::round(value / options.quantization);
+      sample.outputs(i) = value;
+    }
+    recording.samples.push_back(sample);
+  }
+  return recording;
+}
+
+void feed_in_stamp_order(const Recording& recording, DwellAssembler* assembler) {
+  std::size_t c = 0;
+  for (const ImuSample& sample : recording.samples) {
+    while (c < recording.commands.size() && recording.commands[c].stamp_s <= sample.stamp_s) {
+      assembler->add_command(recording.commands[c++]);
+    }
+    assembler->add_sample(sample);
+  }
+  while (c < recording.commands.size()) assembler->add_command(recording.commands[c++]);
+  assembler->flush();
+}
+
+}  // namespace core
+}  // namespace accel_intrinsics

@@ -1,0 +1,17 @@
+# Shared by the tools/ scripts: paths and the ROS environment. Source it, don't run it.
+# The catkin workspace lives outside the repository (ACCEL_WS, default ~/accel_ws) with a
+# symlink to this checkout in its src/.
+set -euo pipefail
+REPO_DIR="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ACCEL_WS="${ACCEL_WS:-$HOME/accel_ws}"
+# Debian's ROS Python modules live in /usr/bin/python3; a pyenv python3 on PATH lacks them.
+export PATH="/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
+export PYTHONNOUSERSITE=1
+unset PYTHONHOME PYTHONPATH 2>/dev/null || true
+
+source_workspace() {
+  set +u
+  # shellcheck disable=SC1091
+  source "$ACCEL_WS/devel/setup.bash"
+  set -u
+}

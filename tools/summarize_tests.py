@@ -1,0 +1,45 @@
+#!/usr/bin/env python3
+"""Counts test cases in the JUnit XML files that catkin writes, prints failures and one
+closing line "N passed, N failed". Exit status 1 when anything failed or nothing ran."""
+import glob
+import os
+import sys
+import xml.etree.ElementTree as ET
+
+
+def main():
+    root = sys.argv[1]
+    passed, failed, failures = 0, 0, []
+    files = sorted(glob.glob(os.path.join(root, "**", "*.xml"), recursive=True))
+    for path in files:
+        try:
+            tree = ET.parse(path)
+        except ET.ParseError as error:
+            failed += 1
+            failures.append("%s: unreadable result file (%s)" % (path, error))
+            continue
+        for case in tree.iter("testcase"):
+            bad = case.find("failure") is not None or case.find("error") is not None
+            if case.find("skipped") is not None:
+                continue
+            name = "%s.%s" % (case.get("classname", "?"), case.get("name", "?"))
+            if bad:
+                failed += 1
+                node = case.find("failure")
+                if node is None:
+                    node = case.find("error")
+                message = (node.get("message") or node.text or "").strip().splitlines()
+                failures.append("%s (%s): %s" % (name, os.path.basename(path),
+                                                 message[0] if message else ""))
+            else:
+                passed += 1
+    for line in failures:
+        print("FAILED " + line)
+    if not files:
+        print("no test result files under %s" % root)
+    print("%d passed, %d failed" % (passed, failed))
+    sys.exit(1 if failed or passed == 0 else 0)
+
+
+if __name__ == "__main__":
+    main()
