@@ -60,7 +60,9 @@ double parse_double(const std::string& field, const std::string& source, std::si
   char* end = nullptr;
   errno = 0;
   const double value = std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size() || errno == ERANGE) {
+  // ERANGE alone is not an error: an underflow to a denormal or zero is still a number, and an
+  // overflow comes back as infinity, which the finiteness check below rejects.
+  if (text.empty() || end != text.c_str() + text.size()) {
     fail(source, line, std::string("field ") + kColumnNames[column] + " is not a number: '" + text + "'");
   }
   if (!std::isfinite(value)) fail(source, line, std::string("field ") + kColumnNames[column] + " is not finite");
@@ -97,6 +99,8 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
   bool have_header = false;
   while (std::getline(in, line)) {
     ++line_number;
+    // A UTF-8 byte-order mark, as spreadsheet programs write, is not part of the header.
+    if (line_number == 1 && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);
     const std::string text = trim(line);
     if (text.empty() || text[0] == '#') continue;
     if (!have_header) {
