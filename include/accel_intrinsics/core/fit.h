@@ -48,7 +48,8 @@ struct FitResult {
   Eigen::Matrix3d S = Eigen::Matrix3d::Identity();  // rows u, v, w
   Eigen::Vector3d O = Eigen::Vector3d::Zero();
   Eigen::Vector3d O_std = Eigen::Vector3d::Zero();
-  // Covariance of (S row-major, O): 12x12.
+  // Covariance of (S row-major, O): 12x12, scaled by reduced_chi2 when above 1 (see fit.cpp).
+  // eq4 fills it completely too: S from the inverse-variance combination, O from eq. (5).
   Eigen::Matrix<double, 12, 12> covariance = Eigen::Matrix<double, 12, 12>::Zero();
 
   // O_up: row = accelerometer u/v/w, column = phase x/y/z. For joint, each entry is O_u.
@@ -85,7 +86,9 @@ struct FitResult {
 FitResult fit(const PositionTable& table, const FitOptions& options = {});
 
 // Standard error of each dwell mean (std / sqrt(n)); rows with n < 2 or zero std get the median
-// of the other rows of the same accelerometer (all zero: unit weights, noise-free data).
+// of the other rows of the same accelerometer (all zero: unit weights, noise-free data). With
+// unit weights the fit takes the scale of its covariance from the residuals (s^2 = chi2 / dof),
+// so an exact fit reports uncertainties at the round-off level.
 std::vector<Eigen::Vector3d> dwell_standard_errors(const PositionTable& table);
 
 }  // namespace core
