@@ -1,0 +1,145 @@
+// Live load test of a running calibration node: publishes IMU messages at --rate (default
+// 10 kHz) and gimbal commands (0.5 s MOVING, then a dwell of --dwell s, default 1.5) on real time, then reports
+// the node's CPU share (from /proc/PID/stat) and its resident memory before and after, and the
+// node's own counters (calibration/status) to show that it kept up.
+//   rosrun accel_intrinsics calibration __name:=calibration &        (real time, no use_sim_time)
+//   rosrun accel_intrinsics calibration_node_load --pid $(pgrep -n calibration) --seconds 20
+#include <diagnostic_msgs/DiagnosticStatus.h>
+#include <ros/ros.h>
+#include <sensor_msgs/Imu.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+
+#include "accel_intrinsics/GimbalCommand.h"
+
+namespace {
+
+double cpu_seconds(int pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  std::getline(in, line);
+  // Fields after the command name (which is in parentheses and may hold spaces).
+  std::istringstream s(line.substr(line.rfind(')') + 2));
+  std::string field;
+  unsigned long utime = 0, stime = 0;
+  for (int i = 3; i <= 15 && s >> field; ++i) {
+    if (i == 14) utime = std::stoul(field);
+    if (i == 15) stime = std::stoul(field);
+  }
+  return static_cast<double>(utime + stime) / static_cast<double>(sysconf(_SC_CLK_TCK));
+}
+
+long rss_kb(int pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("VmRSS:", 0) == 0) return std::atol(line.c_str() + 6);
+  }
+  return -1;
+}
+
+std::map<std::string, std::string> status;
+void on_status(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
+  for (const auto& kv : msg->values) status[kv.key] = kv.value;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "calibration_node_load", ros::init_options::AnonymousName);
+  int pid = 0;
+  double rate_hz = 10000.0, seconds = 20.0, dwell_s = 1.5;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string key = argv[i];
+    if (key == "--pid")
+      pid = std::atoi(argv[i + 1]);
+    else if (key == "--rate")
+      rate_hz = std::atof(argv[i + 1]);
+    else if (key == "--seconds")
+      seconds = std::atof(argv[i + 1]);
+    else if (key == "--dwell")
+      dwell_s = std::atof(argv[i + 1]);
+  }
+  if (pid <= 0 || rate_hz <= 0 || seconds <= 0 || dwell_s <= 0) {
+    std::fprintf(stderr,
+                 "usage: calibration_node_load --pid PID [--rate HZ] [--seconds S] [--dwell S]\n");
+    return 2;
+  }
+  ros::NodeHandle nh;
+  ros::Publisher imu = nh.advertise<sensor_msgs::Imu>("imu/data_raw", 20000);
+  ros::Publisher cmd = nh.advertise<accel_intrinsics::GimbalCommand>("gimbal/command", 100);
+  ros::Subscriber sub = nh.subscribe("calibration/status", 10, on_status);
+  const ros::WallTime wait_until = ros::WallTime::now() + ros::WallDuration(10.0);
+  while ((imu.getNumSubscribers() == 0 || cmd.getNumSubscribers() == 0) &&
+         ros::WallTime::now() < wait_until) {
+    ros::WallDuration(0.05).sleep();
+  }
+  if (imu.getNumSubscribers() == 0) {
+    std::fprintf(stderr, "calibration_node_load: nobody subscribes to %s\n",
+                 imu.getTopic().c_str());
+    return 1;
+  }
+  ros::WallDuration(0.5).sleep();
+  const long rss0 = rss_kb(pid);
+  const double cpu0 = cpu_seconds(pid);
+  const ros::WallTime wall0 = ros::WallTime::now();
+  const ros::Time t0 = ros::Time::now();
+  std::uint64_t sent = 0;
+  double next_command = 0.0;
+  bool moving = true;
+  std::uint32_t step = 0;
+  sensor_msgs::Imu msg;
+  msg.header.frame_id = "dut";
+  msg.orientation_covariance[0] = -1;
+  msg.angular_velocity_covariance[0] = -1;
+  while (ros::ok()) {
+    const double elapsed = (ros::WallTime::now() - wall0).toSec();
+    if (elapsed >= seconds) break;
+    if (elapsed >= next_command) {
+      accel_intrinsics::GimbalCommand c;
+      c.header.stamp = t0 + ros::Duration(next_command);
+      c.phase = 0;
+      c.steps = 100000;
+      c.step = step;
+      c.state = moving ? accel_intrinsics::GimbalCommand::MOVING
+                       : accel_intrinsics::GimbalCommand::SETTLED;
+      cmd.publish(c);
+      if (!moving) ++step;
+      next_command += moving ? 0.5 : dwell_s;
+      moving = !moving;
+    }
+    const std::uint64_t due = static_cast<std::uint64_t>(elapsed * rate_hz);
+    for (; sent < due; ++sent) {
+      msg.header.stamp = t0 + ros::Duration(static_cast<double>(sent) / rate_hz);
+      msg.linear_acceleration.z = 9.8 + 1e-3 * static_cast<double>(sent % 7);
+      imu.publish(msg);
+    }
+    ros::spinOnce();
+    ros::WallDuration(0.0005).sleep();
+  }
+  const double wall = (ros::WallTime::now() - wall0).toSec();
+  ros::WallDuration(1.5).sleep();  // the node drains its queue and publishes its status
+  const double cpu = cpu_seconds(pid) - cpu0;
+  const long rss1 = rss_kb(pid);
+  const ros::WallTime status_until = ros::WallTime::now() + ros::WallDuration(3.0);
+  while (ros::WallTime::now() < status_until) {
+    ros::spinOnce();
+    ros::WallDuration(0.05).sleep();
+  }
+  std::printf("sent %llu IMU messages in %.2f s (%.0f msgs/s) and %u dwells\n",
+              static_cast<unsigned long long>(sent), wall, static_cast<double>(sent) / wall, step);
+  std::printf("calibration node (pid %d): CPU %.1f %% of one core; RSS %ld kB -> %ld kB\n", pid,
+              100.0 * cpu / (wall + 1.5), rss0, rss1);
+  std::printf(
+      "node counters: samples_used %s, dropped_outside_dwell %s, dropped_late %s, "
+      "dwells_x %s\n",
+      status["samples_used"].c_str(), status["dropped_outside_dwell"].c_str(),
+      status["dropped_late"].c_str(), status["dwells_x"].c_str());
+  return 0;
+}

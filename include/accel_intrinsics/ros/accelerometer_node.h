@@ -1,0 +1,61 @@
+// The accelerometer node: publishes the samples of an AccelerometerSource on imu/data_raw as
+// sensor_msgs/Imu (REP 145 and DESIGN.md section 2: linear_acceleration carries R_u, R_v, R_w).
+// The simulated source reads the DUT orientation from tf (the relative topic "tf", so rigs in
+// different namespaces stay apart) at each sample time.
+#pragma once
+
+#include <ros/ros.h>
+#include <tf2_msgs/TFMessage.h>
+#include <tf2_ros/buffer.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/GimbalCommand.h"
+#include "accel_intrinsics/ros/accelerometer_source.h"
+
+namespace accel_intrinsics {
+
+struct AccelerometerOptions {
+  std::string source = "simulated";         // backend
+  std::string frame_id = "dut";             // header.frame_id of the IMU messages
+  std::string world_frame = "world";        // tf frames the simulated source looks up
+  double poll_hz = 200.0;                   // how often the source is polled (node clock), Hz
+  double tf_cache_s = 60.0;                 // tf history kept, s
+  SimulatedAccelerometerOptions simulated;  // ~device/S, ~device/O, ~device/effects, ~rate_hz, ...
+
+  // Reads the private parameters; throws ParamError naming the parameter.
+  static AccelerometerOptions load(const ros::NodeHandle& pnh);
+};
+
+class AccelerometerNode {
+ public:
+  // Builds the simulated source on this node's tf buffer.
+  AccelerometerNode(ros::NodeHandle nh, ros::NodeHandle pnh, const AccelerometerOptions& options);
+
+  // Polls the source for samples up to `now` and publishes them.
+  void poll(const ros::Time& now);
+
+ private:
+  void on_tf(const tf2_msgs::TFMessage::ConstPtr& msg);
+  void on_command(const GimbalCommand::ConstPtr& msg);
+  void on_timer(const ros::TimerEvent&);
+  OrientationStatus lookup(double t_s, Eigen::Matrix3d* R_world_dut);
+
+  ros::NodeHandle nh_, pnh_;
+  AccelerometerOptions options_;
+  tf2_ros::Buffer buffer_;
+  std::unique_ptr<AccelerometerSource> source_;
+  SimulatedAccelerometer* simulated_ = nullptr;  // source_ when simulated
+  ros::Subscriber tf_sub_, command_sub_;
+  ros::Publisher imu_pub_;
+  ros::Timer timer_;
+  ros::Time latest_tf_;  // newest stamp of a complete world -> dut chain
+  ros::Time oldest_tf_;  // oldest stamp still in the buffer (after a restart: the first)
+  bool have_origin_ = false;
+  std::vector<core::ImuSample> batch_;
+  std::uint64_t published_ = 0;
+};
+
+}  // namespace accel_intrinsics

@@ -1,0 +1,92 @@
+// The gimbal controller node: runs the protocol of build_schedule() as a state machine over a
+// GimbalDriver, publishes gimbal/command at each state change (MOVING, SETTLED, DONE),
+// broadcasts the true DUT orientation on tf (world -> gimbal -> dut), offers
+// gimbal_controller/start and gimbal_controller/abort, and reports progress.
+#pragma once
+
+#include <ros/ros.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/GimbalCommand.h"
+#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/ros/gimbal_driver.h"
+
+namespace accel_intrinsics {
+
+struct GimbalControllerOptions {
+  core::ProtocolOptions protocol;    // steps, move_s, settle_s, dwell_s, phase_change_s, two_way
+  bool autostart = false;            // start the protocol without a start call
+  double start_delay_s = 1.0;        // from start (or autostart) to the first MOVING, s
+  double tick_hz = 100.0;            // state machine and tf rate on the node clock, Hz
+  double progress_hz = 1.0;          // progress topic and log rate, Hz
+  double settle_timeout_s = 60.0;    // abort when a move has not settled in this time, s
+  std::string driver = "simulated";  // gimbal backend
+  SimulatedGimbalOptions simulated;  // ~simulated/...: move and settling model, gimbal effects
+  std::string world_frame = "world";
+  std::string gimbal_frame = "gimbal";
+  std::string dut_frame = "dut";
+
+  // Reads the private parameters; throws ParamError naming the parameter.
+  static GimbalControllerOptions load(const ros::NodeHandle& pnh);
+};
+
+// The tf message the controller broadcasts: world -> gimbal and gimbal -> dut at one stamp.
+tf2_msgs::TFMessage make_tf_message(const GimbalTransforms& transforms, const ros::Time& stamp,
+                                    const std::string& world_frame, const std::string& gimbal_frame,
+                                    const std::string& dut_frame);
+
+// The backend named by options.driver; throws ParamError for an unknown name.
+std::unique_ptr<GimbalDriver> make_gimbal_driver(const GimbalControllerOptions& options);
+
+class GimbalControllerNode {
+ public:
+  enum class State { Idle, Starting, Moving, Dwelling, Done, Aborted };
+
+  GimbalControllerNode(ros::NodeHandle nh, ros::NodeHandle pnh,
+                       const GimbalControllerOptions& options,
+                       std::unique_ptr<GimbalDriver> driver);
+
+  // One step of the state machine at time `now` (the timer calls it; tests may too).
+  void tick(const ros::Time& now);
+  // Begins a run (what the start service does); false with a reason when one is running.
+  bool start(const ros::Time& now, std::string* message);
+  // Stops a run (what the abort service does); publishes DONE to close the open dwell.
+  bool abort(const ros::Time& now, const std::string& reason, std::string* message);
+
+  State state() const { return state_; }
+  static const char* state_name(State state);
+
+ private:
+  void on_timer(const ros::TimerEvent& event);
+  bool on_start(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool on_abort(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  void begin_move(std::size_t index, const ros::Time& now);
+  void publish_command(const ros::Time& now, std::uint8_t state, const core::ScheduledPosition& p);
+  void publish_tf(const ros::Time& now);
+  void publish_progress(const ros::Time& now, bool log);
+  double time_left_s(const ros::Time& now) const;
+
+  ros::NodeHandle nh_, pnh_;
+  GimbalControllerOptions options_;
+  std::unique_ptr<GimbalDriver> driver_;
+  ros::Publisher command_pub_, tf_pub_, progress_pub_;
+  ros::ServiceServer start_srv_, abort_srv_;
+  ros::Timer timer_;
+
+  std::vector<core::ScheduledPosition> schedule_;
+  State state_ = State::Idle;
+  std::size_t index_ = 0;
+  ros::Time state_since_;    // stamp of the latest state change
+  ros::Time start_at_;       // first MOVING of a run that is starting
+  ros::Time last_progress_;  // last periodic progress message
+  ros::Time last_tf_;
+  std::string last_error_;
+  bool autostart_pending_ = false;
+};
+
+}  // namespace accel_intrinsics

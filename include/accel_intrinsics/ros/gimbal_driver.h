@@ -1,0 +1,112 @@
+// The gimbal behind an interface (STYLE.md "Hardware behind an interface, injected"): the
+// controller node drives any GimbalDriver; SimulatedGimbalDriver is the default backend.
+//
+// Frames (REP 103, z up in world): world -> gimbal -> dut.
+//   world -> gimbal: the gimbal's rotation axis is the gimbal x axis, horizontal along world x
+//                    (raised by the axis tilt tau toward world z), turned by the gimbal angle.
+//   gimbal -> dut:   the mount of the DUT for the phase, which puts the DUT's own p axis on the
+//                    gimbal axis (a remount between phases).
+// The chain is built so that the specific force in the DUT frame, R_world_dut^T (0, 0, g), is
+// DESIGN.md eq. (4) at the TRUE angle: x: g(0, sin a, cos a), y: g(sin a, 0, cos a),
+// z: g(sin a, cos a, 0), with the tilt applied as in model.h (test/ros_unit/gimbal_tf_test.cpp).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/core/effects.h"
+#include "accel_intrinsics/core/protocol.h"
+
+namespace accel_intrinsics {
+
+// The two rotations broadcast on tf (translations are zero).
+struct GimbalTransforms {
+  Eigen::Quaterniond world_gimbal = Eigen::Quaterniond::Identity();
+  Eigen::Quaterniond gimbal_dut = Eigen::Quaterniond::Identity();
+  // R_world_dut: maps DUT-frame vectors to world-frame vectors.
+  Eigen::Matrix3d world_dut() const {
+    return (world_gimbal * gimbal_dut).normalized().toRotationMatrix();
+  }
+};
+
+// Mount rotation R_gimbal_dut for a phase (a proper rotation: a permutation with signs).
+Eigen::Matrix3d mount_rotation(core::Phase phase);
+// Gimbal angle theta (about the gimbal x axis) that realizes DUT angle alpha in a phase.
+double gimbal_angle(core::Phase phase, double true_angle_rad);
+// The tf chain for a DUT turned about its own `phase` axis to the TRUE angle alpha, with the
+// rotation axis raised by tilt_rad from horizontal.
+GimbalTransforms gimbal_transforms(core::Phase phase, double true_angle_rad, double tilt_rad);
+
+// Where the controller sends the gimbal: one position of the schedule.
+struct GimbalTarget {
+  core::Phase phase = core::Phase::X;
+  std::uint32_t step = 0;
+  std::uint32_t steps = 0;
+  double angle_rad = 0.0;  // commanded alpha
+  int approach = +1;       // +1 from below (increasing angle), -1 from above
+};
+
+class GimbalDriver {
+ public:
+  virtual ~GimbalDriver() = default;
+  // Short description for logs and diagnostics ("simulated").
+  virtual std::string name() const = 0;
+  // Starts a move to `target` at time t_s (seconds on the node's clock).
+  virtual void move_to(const GimbalTarget& target, double t_s) = 0;
+  // True once the gimbal has reached the last target and settled.
+  virtual bool settled(double t_s) const = 0;
+  // Stops where it is (abort).
+  virtual void stop(double t_s) = 0;
+  // True orientation of the DUT at t_s (encoders on hardware; the model in simulation).
+  virtual GimbalTransforms orientation(double t_s) const = 0;
+};
+
+// The simulated gimbal. Its effects are the gimbal side of DESIGN.md section 3 and are read from
+// the gimbal controller's own configuration; the calibration side never sees them.
+struct SimulatedGimbalOptions {
+  double move_s = 1.0;          // duration of a move to the next position, s
+  double phase_change_s = 5.0;  // extra duration of a move that changes phase (remount), s
+  double settle_s = 0.5;        // from the end of the motion until settled, s
+  double ringing_rad = 0.0;     // amplitude of the oscillation when the motion stops, rad;
+                                // decays with time constant settle_s / 5
+  double ringing_hz = 4.0;      // its frequency, Hz
+  // angle_offset, angle_scale, axis_tilt, backlash; at most one of each kind per phase.
+  std::vector<core::Effect> effects;
+
+  // Throws std::invalid_argument naming the field.
+  void validate() const;
+};
+
+class SimulatedGimbalDriver : public GimbalDriver {
+ public:
+  explicit SimulatedGimbalDriver(const SimulatedGimbalOptions& options);
+
+  std::string name() const override { return "simulated"; }
+  void move_to(const GimbalTarget& target, double t_s) override;
+  bool settled(double t_s) const override;
+  void stop(double t_s) override;
+  GimbalTransforms orientation(double t_s) const override;
+
+  // True DUT angle and tilt for a target under the configured gimbal effects (model.h).
+  double true_angle(const GimbalTarget& target) const;
+  double tilt(core::Phase phase) const;
+
+ private:
+  Eigen::Quaterniond pose_of(const GimbalTarget& target) const;  // R_world_dut
+
+  SimulatedGimbalOptions options_;
+  std::vector<double> values_;
+  GimbalTarget target_;
+  Eigen::Quaterniond from_ = Eigen::Quaterniond::Identity();
+  Eigen::Quaterniond to_ = Eigen::Quaterniond::Identity();
+  double move_start_s_ = 0.0;
+  double move_end_s_ = 0.0;
+  bool moved_ = false;
+  bool stopped_ = false;  // stopped by an abort: at rest, no ringing
+};
+
+}  // namespace accel_intrinsics

@@ -1,0 +1,138 @@
+// Accelerometer node: AccelerometerSource -> imu/data_raw.
+#include "accel_intrinsics/ros/accelerometer_node.h"
+
+#include <tf2/exceptions.h>
+
+#include <cmath>
+#include <stdexcept>
+
+#include "accel_intrinsics/ros/conversions.h"
+#include "accel_intrinsics/ros/names.h"
+#include "accel_intrinsics/ros/params.h"
+
+namespace accel_intrinsics {
+
+AccelerometerOptions AccelerometerOptions::load(const ros::NodeHandle& pnh) {
+  AccelerometerOptions o;
+  read_param(pnh, "source", &o.source);
+  require(o.source == "simulated", pnh, "source",
+          "unknown accelerometer source '" + o.source +
+              "' (known: simulated; for hardware run the IMU driver and remap its topic, "
+              "see launch/rig.launch)");
+  read_param(pnh, "frame_id", &o.frame_id);
+  require(!o.frame_id.empty(), pnh, "frame_id", "must not be empty");
+  read_param(pnh, "world_frame", &o.world_frame);
+  require(!o.world_frame.empty(), pnh, "world_frame", "must not be empty");
+  read_param(pnh, "poll_hz", &o.poll_hz);
+  require(std::isfinite(o.poll_hz) && o.poll_hz >= 1.0 && o.poll_hz <= 10000.0, pnh, "poll_hz",
+          "must be in [1, 10000] Hz");
+  read_param(pnh, "tf_cache_s", &o.tf_cache_s);
+  require(std::isfinite(o.tf_cache_s) && o.tf_cache_s >= 1.0, pnh, "tf_cache_s", "must be >= 1 s");
+
+  SimulatedAccelerometerOptions& s = o.simulated;
+  read_matrix3(pnh, "device/S", &s.truth.S);
+  read_vector3(pnh, "device/O", &s.truth.O);
+  read_effects(pnh, "device/effects", &s.truth.effects);
+  read_param(pnh, "rate_hz", &s.rate_hz);
+  read_param(pnh, "noise_density", &s.noise_density);
+  read_param(pnh, "quantization", &s.quantization);
+  read_param(pnh, "local_gravity", &s.local_gravity);
+  int seed = 1;
+  if (read_param(pnh, "seed", &seed)) {
+    require(seed >= 0, pnh, "seed", "must be >= 0");
+    s.seed = static_cast<std::uint64_t>(seed);
+  }
+  try {
+    s.validate();
+  } catch (const std::invalid_argument& e) {
+    throw ParamError("parameter " + pnh.getNamespace() + "/" + e.what());
+  }
+  require(o.poll_hz * 10.0 >= 1.0, pnh, "poll_hz", "too low");
+  return o;
+}
+
+AccelerometerNode::AccelerometerNode(ros::NodeHandle nh, ros::NodeHandle pnh,
+                                     const AccelerometerOptions& options)
+    : nh_(nh), pnh_(pnh), options_(options), buffer_(ros::Duration(options.tf_cache_s)) {
+  auto simulated = std::make_unique<SimulatedAccelerometer>(
+      options_.simulated, [this](double t_s, Eigen::Matrix3d* R) { return lookup(t_s, R); });
+  simulated_ = simulated.get();
+  source_ = std::move(simulated);
+  imu_pub_ = nh_.advertise<sensor_msgs::Imu>(names::kImuTopic, 10000);
+  tf_sub_ = nh_.subscribe(names::kTfTopic, 1000, &AccelerometerNode::on_tf, this,
+                          ros::TransportHints().tcpNoDelay());
+  command_sub_ =
+      nh_.subscribe(names::kGimbalCommandTopic, 100, &AccelerometerNode::on_command, this);
+  timer_ =
+      nh_.createTimer(ros::Duration(1.0 / options_.poll_hz), &AccelerometerNode::on_timer, this);
+  ROS_INFO(
+      "accelerometer: %s source, %.1f Hz, noise %.3g m/s^2 per sample, orientation from %s "
+      "(%s -> %s)",
+      source_->name().c_str(), options_.simulated.rate_hz, options_.simulated.noise_std(),
+      nh_.resolveName(names::kTfTopic).c_str(), options_.world_frame.c_str(),
+      options_.frame_id.c_str());
+}
+
+void AccelerometerNode::on_tf(const tf2_msgs::TFMessage::ConstPtr& msg) {
+  ros::Time newest;
+  for (const geometry_msgs::TransformStamped& t : msg->transforms) {
+    if (!latest_tf_.isZero() && t.header.stamp + ros::Duration(1.0) < latest_tf_) {
+      // The clock went backwards (a restarted simulation): start over.
+      ROS_WARN("accelerometer: tf time jumped back from %.3f to %.3f s; clearing the buffer",
+               latest_tf_.toSec(), t.header.stamp.toSec());
+      buffer_.clear();
+      source_->restart();
+      latest_tf_ = ros::Time();
+      oldest_tf_ = ros::Time();
+      have_origin_ = false;
+    }
+    buffer_.setTransform(t, "gimbal_controller", false);
+    if (t.header.stamp > newest) newest = t.header.stamp;
+  }
+  if (!newest.isZero()) {
+    if (oldest_tf_.isZero()) oldest_tf_ = newest;
+    // A message carries the whole chain with one stamp.
+    if (newest > latest_tf_) latest_tf_ = newest;
+  }
+}
+
+void AccelerometerNode::on_command(const GimbalCommand::ConstPtr& msg) {
+  if (!have_origin_ && simulated_ && !msg->header.stamp.isZero()) {
+    simulated_->set_time_origin(msg->header.stamp.toSec());
+    have_origin_ = true;
+  }
+}
+
+OrientationStatus AccelerometerNode::lookup(double t_s, Eigen::Matrix3d* R) {
+  if (latest_tf_.isZero() || t_s > latest_tf_.toSec()) return OrientationStatus::NotYet;
+  if (t_s < oldest_tf_.toSec()) return OrientationStatus::Never;
+  try {
+    const geometry_msgs::TransformStamped t =
+        buffer_.lookupTransform(options_.world_frame, options_.frame_id, ros::Time(t_s));
+    const Eigen::Quaterniond q(t.transform.rotation.w, t.transform.rotation.x,
+                               t.transform.rotation.y, t.transform.rotation.z);
+    *R = q.normalized().toRotationMatrix();
+    return OrientationStatus::Available;
+  } catch (const tf2::TransformException& e) {
+    ROS_WARN_THROTTLE(5.0, "accelerometer: no orientation at %.4f s: %s", t_s, e.what());
+    return OrientationStatus::Never;
+  }
+}
+
+void AccelerometerNode::poll(const ros::Time& now) {
+  batch_.clear();
+  source_->poll(now.toSec(), &batch_);
+  const double variance = source_->variance_per_axis();
+  for (const core::ImuSample& s : batch_) {
+    imu_pub_.publish(to_msg(s, options_.frame_id, variance));
+  }
+  published_ += batch_.size();
+}
+
+void AccelerometerNode::on_timer(const ros::TimerEvent&) {
+  const ros::Time now = ros::Time::now();
+  if (now.isZero()) return;
+  poll(now);
+}
+
+}  // namespace accel_intrinsics

@@ -1,0 +1,134 @@
+// Simulated accelerometer backend: truth device of model.h at the orientation from tf.
+#include "accel_intrinsics/ros/accelerometer_source.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <utility>
+
+#include "accel_intrinsics/core/simulator.h"
+
+namespace accel_intrinsics {
+
+void SimulatedAccelerometerOptions::validate() const {
+  try {
+    core::validate(truth);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("device: ") + e.what());
+  }
+  for (const core::Effect& e : truth.effects) {
+    if (core::is_gimbal_effect(e.kind)) {
+      throw std::invalid_argument("device/effects: " + e.label() +
+                                  " acts on the gimbal; configure it on the gimbal controller");
+    }
+    if (!std::isfinite(e.value))
+      throw std::invalid_argument("device/effects: " + e.label() + " is not finite");
+    if (e.kind == core::EffectKind::TimingLag && (e.value < 0.0 || e.value > 10.0)) {
+      throw std::invalid_argument("device/effects: timing_lag must be in [0, 10] s");
+    }
+  }
+  if (!std::isfinite(rate_hz) || rate_hz <= 0.0 || rate_hz > 100000.0)
+    throw std::invalid_argument("rate_hz must be in (0, 100000] Hz");
+  if (!std::isfinite(noise_density) || noise_density < 0.0)
+    throw std::invalid_argument("noise_density must be finite and >= 0");
+  if (!std::isfinite(quantization) || quantization < 0.0)
+    throw std::invalid_argument("quantization must be finite and >= 0");
+  if (!std::isfinite(local_gravity) || local_gravity <= 0.0 || local_gravity > 100.0)
+    throw std::invalid_argument("local_gravity must be in (0, 100] m/s^2");
+}
+
+double SimulatedAccelerometerOptions::noise_std() const {
+  core::SimulationOptions sim;
+  sim.rate_hz = rate_hz;
+  sim.noise_density = noise_density;
+  return core::sample_noise_std(sim);
+}
+
+double SimulatedAccelerometerOptions::timing_lag_s() const {
+  double lag = 0.0;
+  for (const core::Effect& e : truth.effects) {
+    if (e.kind == core::EffectKind::TimingLag) lag += e.value;
+  }
+  return lag;
+}
+
+SimulatedAccelerometer::SimulatedAccelerometer(const SimulatedAccelerometerOptions& options,
+                                               OrientationProvider orientation)
+    : options_(options), orientation_(std::move(orientation)), rng_(options.seed) {
+  options_.validate();
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) S_row_major_.push_back(options_.truth.S(r, c));
+  for (const core::Effect& e : options_.truth.effects) {
+    if (e.kind == core::EffectKind::TimingLag) continue;  // acts on stamps, below
+    terms_.push_back(e);
+    values_.push_back(e.value);
+  }
+  core::Effect tilt;
+  tilt.kind = core::EffectKind::AxisTilt;
+  tilt.target = core::index(core::Phase::X);
+  terms_.push_back(tilt);
+  values_.push_back(0.0);
+  noise_std_ = options_.noise_std();
+  lag_s_ = options_.timing_lag_s();
+}
+
+Eigen::Vector3d SimulatedAccelerometer::specific_force(const Eigen::Matrix3d& R_world_dut) const {
+  return R_world_dut.transpose() * Eigen::Vector3d(0.0, 0.0, options_.local_gravity);
+}
+
+Eigen::Vector3d SimulatedAccelerometer::outputs(const Eigen::Vector3d& f_dut, double time_s) const {
+  const double g = f_dut.norm();
+  core::DwellGeometry geom;
+  geom.phase = core::Phase::X;
+  geom.time_s = time_s;
+  if (g > 0.0) {
+    geom.angle_rad = std::atan2(f_dut.y(), f_dut.z());
+    values_.back() = std::asin(std::max(-1.0, std::min(1.0, f_dut.x() / g)));
+  } else {
+    geom.angle_rad = 0.0;
+    values_.back() = 0.0;
+  }
+  return core::predict_outputs(S_row_major_.data(), options_.truth.O.data(), terms_, values_.data(),
+                               geom, g);
+}
+
+void SimulatedAccelerometer::poll(double now_s, std::vector<core::ImuSample>* out) {
+  const double period = 1.0 / options_.rate_hz;
+  if (next_index_ < 0) next_index_ = static_cast<std::int64_t>(std::ceil(now_s / period - 1e-9));
+  // Bounded work per poll: at most 10 s of samples (a stalled clock cannot make us spin).
+  const std::int64_t max_batch = static_cast<std::int64_t>(10.0 * options_.rate_hz) + 1;
+  for (std::int64_t n = 0; n < max_batch; ++n) {
+    const double t = static_cast<double>(next_index_) * period;  // true sample time
+    if (t > now_s) break;
+    Eigen::Matrix3d R;
+    const OrientationStatus status = orientation_(t, &R);
+    if (status == OrientationStatus::NotYet) break;
+    ++next_index_;
+    if (status == OrientationStatus::Never) {
+      ++skipped_;
+      continue;
+    }
+    const double since_t0 = std::isfinite(time_origin_s_) ? t - time_origin_s_ : 0.0;
+    Eigen::Vector3d R_out = outputs(specific_force(R), since_t0);
+    if (noise_std_ > 0.0) {
+      for (int i = 0; i < 3; ++i) R_out(i) += noise_std_ * normal_(rng_);
+    }
+    if (options_.quantization > 0.0) {
+      for (int i = 0; i < 3; ++i)
+        R_out(i) = options_.quantization * std::round(R_out(i) / options_.quantization);
+    }
+    core::ImuSample sample;
+    sample.stamp_s = t + lag_s_;  // timing_lag: the stamp is late
+    sample.outputs = R_out;
+    out->push_back(sample);
+  }
+}
+
+double SimulatedAccelerometer::variance_per_axis() const {
+  const double q = options_.quantization;
+  return noise_std_ * noise_std_ + q * q / 12.0;
+}
+
+void SimulatedAccelerometer::restart() { next_index_ = -1; }
+
+}  // namespace accel_intrinsics

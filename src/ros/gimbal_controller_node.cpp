@@ -1,0 +1,360 @@
+// Gimbal controller node: protocol state machine, gimbal/command, tf, start/abort, progress.
+#include "accel_intrinsics/ros/gimbal_controller_node.h"
+
+#include <diagnostic_msgs/DiagnosticStatus.h>
+#include <diagnostic_msgs/KeyValue.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/ros/names.h"
+#include "accel_intrinsics/ros/params.h"
+
+namespace accel_intrinsics {
+
+namespace {
+
+geometry_msgs::TransformStamped make_transform(const ros::Time& stamp, const std::string& parent,
+                                               const std::string& child,
+                                               const Eigen::Quaterniond& q) {
+  geometry_msgs::TransformStamped t;
+  t.header.stamp = stamp;
+  t.header.frame_id = parent;
+  t.child_frame_id = child;
+  t.transform.rotation.w = q.w();
+  t.transform.rotation.x = q.x();
+  t.transform.rotation.y = q.y();
+  t.transform.rotation.z = q.z();
+  return t;
+}
+
+diagnostic_msgs::KeyValue kv(const std::string& key, const std::string& value) {
+  diagnostic_msgs::KeyValue out;
+  out.key = key;
+  out.value = value;
+  return out;
+}
+
+std::string num(double v, int precision = 3) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(precision);
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+tf2_msgs::TFMessage make_tf_message(const GimbalTransforms& transforms, const ros::Time& stamp,
+                                    const std::string& world_frame, const std::string& gimbal_frame,
+                                    const std::string& dut_frame) {
+  tf2_msgs::TFMessage msg;
+  msg.transforms.push_back(
+      make_transform(stamp, world_frame, gimbal_frame, transforms.world_gimbal));
+  msg.transforms.push_back(make_transform(stamp, gimbal_frame, dut_frame, transforms.gimbal_dut));
+  return msg;
+}
+
+GimbalControllerOptions GimbalControllerOptions::load(const ros::NodeHandle& pnh) {
+  GimbalControllerOptions o;
+  o.protocol = read_protocol(pnh);
+  read_param(pnh, "autostart", &o.autostart);
+  read_param(pnh, "start_delay_s", &o.start_delay_s);
+  require(std::isfinite(o.start_delay_s) && o.start_delay_s >= 0.0, pnh, "start_delay_s",
+          "must be finite and >= 0 s");
+  read_param(pnh, "tick_hz", &o.tick_hz);
+  require(std::isfinite(o.tick_hz) && o.tick_hz >= 1.0 && o.tick_hz <= 10000.0, pnh, "tick_hz",
+          "must be in [1, 10000] Hz");
+  read_param(pnh, "progress_hz", &o.progress_hz);
+  require(std::isfinite(o.progress_hz) && o.progress_hz > 0.0, pnh, "progress_hz",
+          "must be > 0 Hz");
+  read_param(pnh, "settle_timeout_s", &o.settle_timeout_s);
+  require(std::isfinite(o.settle_timeout_s) && o.settle_timeout_s > 0.0, pnh, "settle_timeout_s",
+          "must be > 0 s");
+  read_param(pnh, "driver", &o.driver);
+  require(o.driver == "simulated", pnh, "driver",
+          "unknown gimbal driver '" + o.driver + "' (known: simulated)");
+  read_param(pnh, "world_frame", &o.world_frame);
+  read_param(pnh, "gimbal_frame", &o.gimbal_frame);
+  read_param(pnh, "dut_frame", &o.dut_frame);
+  require(!o.world_frame.empty(), pnh, "world_frame", "must not be empty");
+  require(!o.gimbal_frame.empty(), pnh, "gimbal_frame", "must not be empty");
+  require(!o.dut_frame.empty(), pnh, "dut_frame", "must not be empty");
+
+  // The simulated gimbal: by default it moves and settles in the protocol's times.
+  const ros::NodeHandle sim(pnh, "simulated");
+  o.simulated.move_s = o.protocol.move_s;
+  o.simulated.settle_s = o.protocol.settle_s;
+  o.simulated.phase_change_s = o.protocol.phase_change_s;
+  read_param(sim, "move_s", &o.simulated.move_s);
+  read_param(sim, "settle_s", &o.simulated.settle_s);
+  read_param(sim, "phase_change_s", &o.simulated.phase_change_s);
+  read_param(sim, "ringing_rad", &o.simulated.ringing_rad);
+  read_param(sim, "ringing_hz", &o.simulated.ringing_hz);
+  read_effects(sim, "effects", &o.simulated.effects);
+  try {
+    o.simulated.validate();
+  } catch (const std::invalid_argument& e) {
+    throw ParamError("parameter " + sim.getNamespace() + "/" + e.what());
+  }
+  return o;
+}
+
+std::unique_ptr<GimbalDriver> make_gimbal_driver(const GimbalControllerOptions& options) {
+  if (options.driver == "simulated") {
+    return std::unique_ptr<GimbalDriver>(new SimulatedGimbalDriver(options.simulated));
+  }
+  throw ParamError("unknown gimbal driver '" + options.driver + "'");
+}
+
+const char* GimbalControllerNode::state_name(State state) {
+  switch (state) {
+    case State::Idle:
+      return "IDLE";
+    case State::Starting:
+      return "STARTING";
+    case State::Moving:
+      return "MOVING";
+    case State::Dwelling:
+      return "SETTLED";
+    case State::Done:
+      return "DONE";
+    case State::Aborted:
+      return "ABORTED";
+  }
+  return "?";
+}
+
+GimbalControllerNode::GimbalControllerNode(ros::NodeHandle nh, ros::NodeHandle pnh,
+                                           const GimbalControllerOptions& options,
+                                           std::unique_ptr<GimbalDriver> driver)
+    : nh_(nh), pnh_(pnh), options_(options), driver_(std::move(driver)) {
+  schedule_ = core::build_schedule(options_.protocol);
+  command_pub_ = nh_.advertise<GimbalCommand>(names::kGimbalCommandTopic, 100);
+  tf_pub_ = nh_.advertise<tf2_msgs::TFMessage>(names::kTfTopic, 100);
+  progress_pub_ = nh_.advertise<diagnostic_msgs::DiagnosticStatus>(names::kProgressTopic, 10, true);
+  start_srv_ = nh_.advertiseService(names::kStartService, &GimbalControllerNode::on_start, this);
+  abort_srv_ = nh_.advertiseService(names::kAbortService, &GimbalControllerNode::on_abort, this);
+  autostart_pending_ = options_.autostart;
+  timer_ =
+      nh_.createTimer(ros::Duration(1.0 / options_.tick_hz), &GimbalControllerNode::on_timer, this);
+  ROS_INFO("gimbal controller: %s driver, %zu positions (N = %u per phase%s), about %.0f s; %s",
+           driver_->name().c_str(), schedule_.size(), options_.protocol.steps_per_phase,
+           options_.protocol.two_way ? ", two-way" : "",
+           schedule_.empty() ? 0.0 : schedule_.back().dwell_end_s + options_.start_delay_s,
+           options_.autostart ? "autostart"
+                              : ("waiting for " + nh_.resolveName(names::kStartService)).c_str());
+}
+
+void GimbalControllerNode::on_timer(const ros::TimerEvent&) {
+  const ros::Time now = ros::Time::now();
+  if (now.isZero()) return;  // no clock yet (use_sim_time)
+  tick(now);
+}
+
+bool GimbalControllerNode::start(const ros::Time& now, std::string* message) {
+  if (state_ == State::Starting || state_ == State::Moving || state_ == State::Dwelling) {
+    std::ostringstream s;
+    s << "already running (" << state_name(state_) << " phase "
+      << core::phase_name(schedule_[index_].phase) << " step " << schedule_[index_].step << ")";
+    *message = s.str();
+    return false;
+  }
+  state_ = State::Starting;
+  state_since_ = now;
+  start_at_ = now + ros::Duration(options_.start_delay_s);
+  index_ = 0;
+  last_error_.clear();
+  std::ostringstream s;
+  s << "started: " << schedule_.size() << " positions, about " << num(time_left_s(now), 0) << " s";
+  *message = s.str();
+  ROS_INFO("gimbal controller: %s", message->c_str());
+  publish_progress(now, false);
+  return true;
+}
+
+bool GimbalControllerNode::abort(const ros::Time& now, const std::string& reason,
+                                 std::string* message) {
+  if (state_ != State::Starting && state_ != State::Moving && state_ != State::Dwelling) {
+    *message = std::string("not running (") + state_name(state_) + ")";
+    return false;
+  }
+  const bool had_commands = state_ != State::Starting;
+  driver_->stop(now.toSec());
+  if (had_commands) {
+    // DONE ends the run and closes the open dwell; the calibration node then reports what is
+    // missing. The progress topic says ABORTED.
+    publish_command(now, GimbalCommand::DONE, schedule_[index_]);
+  }
+  state_ = State::Aborted;
+  state_since_ = now;
+  last_error_ = reason;
+  *message = "aborted: " + reason;
+  ROS_WARN("gimbal controller: %s", message->c_str());
+  publish_progress(now, false);
+  return true;
+}
+
+bool GimbalControllerNode::on_start(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  res.success = start(ros::Time::now(), &res.message);
+  return true;
+}
+
+bool GimbalControllerNode::on_abort(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  res.success = abort(ros::Time::now(), "abort requested", &res.message);
+  return true;
+}
+
+void GimbalControllerNode::begin_move(std::size_t index, const ros::Time& now) {
+  index_ = index;
+  const core::ScheduledPosition& p = schedule_[index_];
+  GimbalTarget target;
+  target.phase = p.phase;
+  target.step = p.step;
+  target.steps = p.steps;
+  target.angle_rad = p.angle_rad;
+  target.approach = p.approach;
+  // The command goes out first with this stamp; the gimbal starts moving at the same instant,
+  // so every sample stamped before it was taken at rest.
+  publish_command(now, GimbalCommand::MOVING, p);
+  driver_->move_to(target, now.toSec());
+  state_ = State::Moving;
+  state_since_ = now;
+}
+
+void GimbalControllerNode::tick(const ros::Time& now) {
+  if (autostart_pending_) {
+    autostart_pending_ = false;
+    std::string message;
+    start(now, &message);
+  }
+  bool changed = false;
+  switch (state_) {
+    case State::Starting:
+      if (now >= start_at_) {
+        begin_move(0, now);
+        changed = true;
+      }
+      break;
+    case State::Moving:
+      if (driver_->settled(now.toSec())) {
+        publish_command(now, GimbalCommand::SETTLED, schedule_[index_]);
+        state_ = State::Dwelling;
+        state_since_ = now;
+        changed = true;
+      } else if ((now - state_since_).toSec() > options_.settle_timeout_s) {
+        std::string message;
+        abort(now, "the gimbal did not settle within settle_timeout_s", &message);
+        ROS_ERROR("gimbal controller: %s", message.c_str());
+      }
+      break;
+    case State::Dwelling:
+      if ((now - state_since_).toSec() >= options_.protocol.dwell_s) {
+        if (index_ + 1 < schedule_.size()) {
+          begin_move(index_ + 1, now);
+        } else {
+          publish_command(now, GimbalCommand::DONE, schedule_[index_]);
+          state_ = State::Done;
+          state_since_ = now;
+          ROS_INFO("gimbal controller: protocol done (%zu positions)", schedule_.size());
+        }
+        changed = true;
+      }
+      break;
+    default:
+      break;
+  }
+  publish_tf(now);
+  const bool periodic = (now - last_progress_).toSec() >= 1.0 / options_.progress_hz;
+  if (changed || periodic || now < last_progress_) publish_progress(now, periodic);
+}
+
+void GimbalControllerNode::publish_command(const ros::Time& now, std::uint8_t state,
+                                           const core::ScheduledPosition& p) {
+  GimbalCommand msg;
+  msg.header.stamp = now;
+  msg.header.frame_id = options_.gimbal_frame;
+  msg.phase = static_cast<std::uint8_t>(core::index(p.phase));
+  msg.step = p.step;
+  msg.steps = p.steps;
+  msg.angle = p.angle_rad;
+  msg.state = state;
+  command_pub_.publish(msg);
+  ROS_DEBUG("gimbal/command %s phase %s step %u/%u angle %.4f rad",
+            state == GimbalCommand::MOVING    ? "MOVING"
+            : state == GimbalCommand::SETTLED ? "SETTLED"
+                                              : "DONE",
+            core::phase_name(p.phase), p.step, p.steps, p.angle_rad);
+}
+
+void GimbalControllerNode::publish_tf(const ros::Time& now) {
+  if (now <= last_tf_ && !(now < last_tf_ - ros::Duration(1.0))) return;  // one per stamp
+  last_tf_ = now;
+  tf_pub_.publish(make_tf_message(driver_->orientation(now.toSec()), now, options_.world_frame,
+                                  options_.gimbal_frame, options_.dut_frame));
+}
+
+double GimbalControllerNode::time_left_s(const ros::Time& now) const {
+  if (schedule_.empty()) return 0.0;
+  const double total = schedule_.back().dwell_end_s;
+  const double since = std::max(0.0, (now - state_since_).toSec());
+  const core::ScheduledPosition& p = schedule_[index_];
+  switch (state_) {
+    case State::Idle:
+      return total + options_.start_delay_s;
+    case State::Starting:
+      return total + std::max(0.0, (start_at_ - now).toSec());
+    case State::Moving:
+      return std::max(0.0, total - std::min(p.settled_s, p.move_start_s + since));
+    case State::Dwelling:
+      return std::max(0.0, total - std::min(p.dwell_end_s, p.settled_s + since));
+    default:
+      return 0.0;
+  }
+}
+
+void GimbalControllerNode::publish_progress(const ros::Time& now, bool log) {
+  last_progress_ = now;
+  const core::ScheduledPosition& p = schedule_[std::min(index_, schedule_.size() - 1)];
+  const bool running = state_ == State::Moving || state_ == State::Dwelling;
+  // 1-based number of the position being visited; all of them once done.
+  const std::size_t position =
+      state_ == State::Done ? schedule_.size() : (running ? index_ + 1 : 0);
+  const double left = time_left_s(now);
+  const double total = schedule_.back().dwell_end_s;
+  const double fraction =
+      state_ == State::Done ? 1.0 : std::min(1.0, std::max(0.0, 1.0 - left / total));
+
+  diagnostic_msgs::DiagnosticStatus msg;
+  msg.name = nh_.resolveName("gimbal_controller");
+  msg.hardware_id = driver_->name();
+  msg.level = state_ == State::Aborted ? diagnostic_msgs::DiagnosticStatus::ERROR
+                                       : diagnostic_msgs::DiagnosticStatus::OK;
+  std::ostringstream text;
+  text << state_name(state_);
+  if (running) {
+    text << " phase " << core::phase_name(p.phase) << " step " << p.step + 1 << "/" << p.steps;
+  }
+  if (state_ == State::Aborted) text << ": " << last_error_;
+  msg.message = text.str();
+  msg.values.push_back(kv("state", state_name(state_)));
+  msg.values.push_back(kv("phase", running ? core::phase_name(p.phase) : ""));
+  msg.values.push_back(kv("step", running ? std::to_string(p.step) : ""));
+  msg.values.push_back(kv("steps", std::to_string(options_.protocol.steps_per_phase)));
+  msg.values.push_back(kv("position", std::to_string(position)));
+  msg.values.push_back(kv("positions", std::to_string(schedule_.size())));
+  msg.values.push_back(kv("fraction", num(fraction, 4)));
+  msg.values.push_back(kv("time_left_s", num(left, 1)));
+  msg.values.push_back(kv("stamp", num(now.toSec(), 3)));
+  progress_pub_.publish(msg);
+  if (log && running) {
+    ROS_INFO("gimbal controller: %s, %.0f%%, %.0f s left", msg.message.c_str(), 100.0 * fraction,
+             left);
+  }
+}
+
+}  // namespace accel_intrinsics

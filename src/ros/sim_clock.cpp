@@ -1,0 +1,46 @@
+// Faster-than-real-time clock for the simulated stand.
+#include "accel_intrinsics/ros/sim_clock.h"
+
+#include <rosgraph_msgs/Clock.h>
+
+#include <cmath>
+
+#include "accel_intrinsics/ros/names.h"
+#include "accel_intrinsics/ros/params.h"
+
+namespace accel_intrinsics {
+
+SimClockOptions SimClockOptions::load(const ros::NodeHandle& pnh) {
+  SimClockOptions o;
+  read_param(pnh, "time_scale", &o.time_scale);
+  require(std::isfinite(o.time_scale) && o.time_scale > 0.0 && o.time_scale <= 1000.0, pnh,
+          "time_scale", "must be in (0, 1000]");
+  read_param(pnh, "rate_hz", &o.rate_hz);
+  require(std::isfinite(o.rate_hz) && o.rate_hz >= 1.0 && o.rate_hz <= 10000.0, pnh, "rate_hz",
+          "must be in [1, 10000] Hz");
+  read_param(pnh, "start_s", &o.start_s);
+  require(std::isfinite(o.start_s) && o.start_s > 0.0 && o.start_s < 2e9, pnh, "start_s",
+          "must be in (0, 2e9) s");
+  return o;
+}
+
+SimClock::SimClock(ros::NodeHandle nh, const SimClockOptions& options)
+    : nh_(nh), options_(options) {
+  pub_ = nh_.advertise<rosgraph_msgs::Clock>(names::kClockTopic, 10);
+}
+
+void SimClock::run() {
+  ROS_INFO("sim_clock: /clock from %.1f s at %.2fx real time, %.0f Hz", options_.start_s,
+           options_.time_scale, options_.rate_hz);
+  const ros::WallTime wall0 = ros::WallTime::now();
+  ros::WallRate rate(options_.rate_hz);
+  while (ros::ok()) {
+    const double elapsed = (ros::WallTime::now() - wall0).toSec();
+    rosgraph_msgs::Clock msg;
+    msg.clock.fromSec(options_.start_s + options_.time_scale * elapsed);
+    pub_.publish(msg);
+    rate.sleep();
+  }
+}
+
+}  // namespace accel_intrinsics

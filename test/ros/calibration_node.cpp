@@ -1,0 +1,300 @@
+// The calibration node alone (test/ros/calibration_node.test). The test owns /clock.
+#include <diagnostic_msgs/DiagnosticStatus.h>
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+#include <rosgraph_msgs/Clock.h>
+#include <sensor_msgs/Imu.h>
+#include <std_srvs/Trigger.h>
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/GetIntrinsics.h"
+#include "accel_intrinsics/GimbalCommand.h"
+#include "accel_intrinsics/core/protocol.h"
+
+namespace ai = accel_intrinsics;
+namespace core = accel_intrinsics::core;
+
+namespace {
+
+struct Expected {
+  int phase;
+  int step;
+  double t_start, t_end;
+  int n;
+  Eigen::Vector3d mean, std;
+};
+
+class CalibrationNodeTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ros::NodeHandle pnh("~");
+    ASSERT_TRUE(pnh.getParam("output_dir", output_dir_));
+    ASSERT_TRUE(pnh.getParam("local_gravity", g_));
+    ASSERT_TRUE(pnh.getParam("steps", steps_));
+    ASSERT_TRUE(pnh.getParam("fit_tolerance", tolerance_));
+    std::vector<double> S, O;
+    ASSERT_TRUE(pnh.getParam("truth_S", S));
+    ASSERT_TRUE(pnh.getParam("truth_O", O));
+    ASSERT_EQ(S.size(), 9u);
+    ASSERT_EQ(O.size(), 3u);
+    for (int i = 0; i < 9; ++i) S_(i / 3, i % 3) = S[i];
+    O_ = Eigen::Vector3d(O[0], O[1], O[2]);
+    clock_pub_ = nh_.advertise<rosgraph_msgs::Clock>("/clock", 1, true);
+    command_pub_ = nh_.advertise<ai::GimbalCommand>("gimbal/command", 1000);
+    imu_pub_ = nh_.advertise<sensor_msgs::Imu>("imu/data_raw", 1000);
+    status_sub_ = nh_.subscribe("calibration/status", 10, &CalibrationNodeTest::on_status, this);
+    set_clock(50.0);
+    get_ = nh_.serviceClient<ai::GetIntrinsics>("calibration/get_intrinsics");
+    reset_ = nh_.serviceClient<std_srvs::Trigger>("calibration/reset");
+    ASSERT_TRUE(get_.waitForExistence(ros::Duration(30.0)));
+    ASSERT_TRUE(reset_.waitForExistence(ros::Duration(30.0)));
+    const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(20.0);
+    while ((command_pub_.getNumSubscribers() == 0 || imu_pub_.getNumSubscribers() == 0) &&
+           ros::WallTime::now() < deadline) {
+      ros::WallDuration(0.05).sleep();
+    }
+    ASSERT_GT(command_pub_.getNumSubscribers(), 0u);
+    ASSERT_GT(imu_pub_.getNumSubscribers(), 0u);
+  }
+
+  void set_clock(double t) {
+    rosgraph_msgs::Clock c;
+    c.clock.fromSec(t);
+    clock_pub_.publish(c);
+  }
+
+  void on_status(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
+    std::map<std::string, std::string> values;
+    for (const auto& kv : msg->values) values[kv.key] = kv.value;
+    status_ = values;
+  }
+
+  void command(double t, int phase, int step, std::uint8_t state) {
+    ai::GimbalCommand c;
+    c.header.stamp.fromSec(t);
+    c.phase = static_cast<std::uint8_t>(phase);
+    c.step = static_cast<std::uint32_t>(step);
+    c.steps = static_cast<std::uint32_t>(steps_);
+    c.angle = core::step_angle(step, steps_);
+    c.state = state;
+    command_pub_.publish(c);
+  }
+
+  void sample(double t, const Eigen::Vector3d& outputs) {
+    sensor_msgs::Imu m;
+    m.header.stamp.fromSec(t);
+    m.header.frame_id = "dut";
+    m.orientation_covariance[0] = -1;
+    m.angular_velocity_covariance[0] = -1;
+    m.linear_acceleration.x = outputs.x();
+    m.linear_acceleration.y = outputs.y();
+    m.linear_acceleration.z = outputs.z();
+    imu_pub_.publish(m);
+  }
+
+  Eigen::Vector3d truth_outputs(int phase, int step) const {
+    const Eigen::Vector3d f = g_ * core::in_plane_direction(static_cast<core::Phase>(phase),
+                                                            core::step_angle(step, steps_));
+    return S_ * f + O_;
+  }
+
+  ai::GetIntrinsics::Response call_get() {
+    ai::GetIntrinsics srv;
+    EXPECT_TRUE(get_.call(srv));
+    return srv.response;
+  }
+
+  ros::NodeHandle nh_;
+  ros::Publisher clock_pub_, command_pub_, imu_pub_;
+  ros::Subscriber status_sub_;
+  ros::ServiceClient get_, reset_;
+  std::map<std::string, std::string> status_;
+  std::string output_dir_;
+  double g_ = 9.80665, tolerance_ = 1e-9;
+  int steps_ = 3;
+  Eigen::Matrix3d S_;
+  Eigen::Vector3d O_;
+};
+
+// Splits a CSV line.
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> out;
+  std::stringstream s(line);
+  std::string field;
+  while (std::getline(s, field, ',')) out.push_back(field);
+  return out;
+}
+
+}  // namespace
+
+TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
+  const Eigen::Vector3d delta(0.01, 0.02, 0.03);
+  const int dwell_samples = 10;
+  std::vector<Expected> expected;
+  int moving_samples = 0, before_samples = 0, after_samples = 0;
+
+  // Samples before the first command: outside every dwell.
+  for (int k = 0; k < 5; ++k, ++before_samples) sample(99.5 + 0.1 * k, truth_outputs(0, 0));
+  double t = 100.0;
+  for (int p = 0; p < 3; ++p) {
+    for (int n = 0; n < steps_; ++n) {
+      command(t, p, n, ai::GimbalCommand::MOVING);
+      // One sample exactly at the MOVING stamp and nine while moving: all dropped.
+      for (int k = 0; k < 10; ++k, ++moving_samples) sample(t + 0.1 * k, Eigen::Vector3d(1, 2, 3));
+      command(t + 1.0, p, n, ai::GimbalCommand::SETTLED);
+      const Eigen::Vector3d mean = truth_outputs(p, n);
+      // Ten samples from the SETTLED stamp on (inclusive), alternating +-delta: the dwell mean
+      // is exact and the sample std is delta * sqrt(10 / 9).
+      for (int k = 0; k < dwell_samples; ++k) {
+        sample(t + 1.0 + 0.1 * k, mean + (k % 2 == 0 ? delta : Eigen::Vector3d(-delta)));
+        if (p == 1 && n == 1 && k == 4) {
+          Eigen::Vector3d nan_out = mean;  // a NaN sample inside a dwell
+          nan_out.y() = std::nan("");
+          sample(t + 1.45, nan_out);
+        }
+      }
+      if (p == 2 && n == 0) sample(t + 1.5, Eigen::Vector3d(9, 9, 9));  // stamp went backwards
+      expected.push_back(
+          {p, n, t + 1.0, t + 2.0, dwell_samples, mean, delta * std::sqrt(10.0 / 9.0)});
+      t += 2.0;
+    }
+  }
+  command(t, 2, steps_ - 1, ai::GimbalCommand::DONE);
+  for (int k = 0; k < 3; ++k, ++after_samples) sample(t + 0.1 * k, Eigen::Vector3d(7, 7, 7));
+  // Out of protocol: a SETTLED after DONE; malformed: phase 7.
+  command(t + 0.5, 0, 1, ai::GimbalCommand::SETTLED);
+  {
+    ai::GimbalCommand bad;
+    bad.header.stamp.fromSec(t + 0.6);
+    bad.phase = 7;
+    bad.steps = 3;
+    command_pub_.publish(bad);
+  }
+  const double done_stamp = t;
+  ros::WallDuration(2.0).sleep();  // let everything arrive; the clock stands still at 50 s
+
+  // Nothing is released yet: the service names what is missing.
+  {
+    const ai::GetIntrinsics::Response r = call_get();
+    EXPECT_FALSE(r.success);
+    EXPECT_NE(r.message.find("phase x"), std::string::npos) << r.message;
+    EXPECT_NE(r.message.find("0 of 3"), std::string::npos) << r.message;
+  }
+
+  // Past DONE + reorder window: the node flushes and fits.
+  set_clock(done_stamp + 60.0 + 1.0);
+  ai::GetIntrinsics::Response result;
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(20.0);
+  while (ros::WallTime::now() < deadline) {
+    result = call_get();
+    if (result.success) break;
+    ros::WallDuration(0.1).sleep();
+  }
+  ASSERT_TRUE(result.success) << result.message;
+  const ai::IntrinsicResult& r = result.result;
+  EXPECT_EQ(r.model, "joint");
+  EXPECT_DOUBLE_EQ(r.local_gravity, g_);
+  EXPECT_EQ(r.positions[0], 3u);
+  EXPECT_EQ(r.positions[1], 3u);
+  EXPECT_EQ(r.positions[2], 3u);
+  const double vec[3][3] = {{r.u.x, r.u.y, r.u.z}, {r.v.x, r.v.y, r.v.z}, {r.w.x, r.w.y, r.w.z}};
+  for (int s = 0; s < 3; ++s) {
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(vec[s][c], S_(s, c), tolerance_) << "S(" << s << "," << c << ")";
+    EXPECT_NEAR(r.offset[s], O_(s), tolerance_) << "O " << s;
+    EXPECT_NEAR(r.responsivity[s], S_.row(s).norm(), tolerance_);
+  }
+
+  // The position table checkpoint: one row per dwell, exact assignment.
+  std::ifstream csv(output_dir_ + "/position_table.csv");
+  ASSERT_TRUE(csv.good()) << output_dir_;
+  std::string line;
+  ASSERT_TRUE(std::getline(csv, line));
+  EXPECT_EQ(line, "phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w");
+  std::size_t row = 0;
+  while (std::getline(csv, line)) {
+    if (line.empty()) continue;
+    ASSERT_LT(row, expected.size());
+    const Expected& e = expected[row];
+    const std::vector<std::string> f = split(line);
+    ASSERT_EQ(f.size(), 12u) << line;
+    EXPECT_EQ(f[0], std::string(1, "xyz"[e.phase])) << line;
+    EXPECT_EQ(std::stoi(f[1]), e.step) << line;
+    EXPECT_NEAR(std::stod(f[3]), e.t_start, 1e-6) << line;
+    EXPECT_NEAR(std::stod(f[4]), e.t_end, 1e-6) << line;
+    EXPECT_EQ(std::stoi(f[5]), e.n) << "exact dwell assignment: " << line;
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(std::stod(f[6 + k]), e.mean(k), 1e-12) << line;
+      EXPECT_NEAR(std::stod(f[9 + k]), e.std(k), 1e-12) << line;
+    }
+    ++row;
+  }
+  EXPECT_EQ(row, expected.size());
+  std::ifstream yaml(output_dir_ + "/intrinsics.yaml");
+  EXPECT_TRUE(yaml.good());
+
+  // Counters on calibration/status (latched, republished with the result).
+  const ros::WallTime status_deadline = ros::WallTime::now() + ros::WallDuration(10.0);
+  while (status_["state"] != "RESULT" && ros::WallTime::now() < status_deadline) {
+    ros::WallDuration(0.05).sleep();
+  }
+  ASSERT_EQ(status_["state"], "RESULT");
+  EXPECT_EQ(std::stoi(status_["samples_used"]), 9 * dwell_samples);
+  EXPECT_EQ(std::stoi(status_["dropped_outside_dwell"]),
+            before_samples + moving_samples + after_samples);
+  EXPECT_EQ(std::stoi(status_["dropped_non_finite"]), 1);
+  EXPECT_EQ(std::stoi(status_["dropped_backwards"]), 1);
+  EXPECT_EQ(std::stoi(status_["dropped_late"]), 0);
+  EXPECT_EQ(std::stoi(status_["commands_out_of_order"]), 1);
+  EXPECT_EQ(std::stoi(status_["commands_rejected"]), 1);
+  EXPECT_EQ(std::stoi(status_["dwells_x"]), 3);
+  EXPECT_EQ(std::stoi(status_["dwells_y"]), 3);
+  EXPECT_EQ(std::stoi(status_["dwells_z"]), 3);
+
+  // Reset: the result is gone and the service says what is missing again.
+  std_srvs::Trigger reset;
+  ASSERT_TRUE(reset_.call(reset));
+  EXPECT_TRUE(reset.response.success);
+  const ai::GetIntrinsics::Response after = call_get();
+  EXPECT_FALSE(after.success);
+  EXPECT_NE(after.message.find("phase x"), std::string::npos) << after.message;
+}
+
+TEST(NodeParams, RefuseToStartNamingTheParameter) {
+  // Each node with one bad private parameter: exit status 2 and the parameter's full name.
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"calibration __name:=bad_calibration _local_gravity:=3.0", "/bad_calibration/local_gravity"},
+      {"calibration __name:=bad_model _model:=quadratic", "/bad_model/model"},
+      {"gimbal_controller __name:=bad_gimbal _steps:=2", "/bad_gimbal/steps"},
+      {"gimbal_controller __name:=bad_dwell _dwell_s:=-1.0", "/bad_dwell/dwell_s"},
+      {"accelerometer __name:=bad_rate _rate_hz:=-5.0", "/bad_rate/rate_hz"},
+      {"sim_clock __name:=bad_clock _time_scale:=0.0", "/bad_clock/time_scale"},
+  };
+  for (const auto& c : cases) {
+    FILE* pipe = popen(("rosrun accel_intrinsics " + c.first + " 2>&1").c_str(), "r");
+    ASSERT_NE(pipe, nullptr);
+    std::string output;
+    char buffer[512];
+    while (fgets(buffer, sizeof(buffer), pipe)) output += buffer;
+    const int status = pclose(pipe);
+    EXPECT_TRUE(WIFEXITED(status)) << c.first;
+    EXPECT_EQ(WEXITSTATUS(status), 2) << c.first << "\n" << output;
+    EXPECT_NE(output.find(c.second), std::string::npos) << c.first << "\n" << output;
+  }
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "calibration_node_test");
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  return RUN_ALL_TESTS();
+}

@@ -1,0 +1,85 @@
+// get_intrinsics before completion (test/ros/service_before_completion.test).
+#include <diagnostic_msgs/DiagnosticStatus.h>
+#include <std_srvs/Trigger.h>
+
+#include <map>
+#include <mutex>
+
+#include "stand_checks.h"
+
+namespace {
+std::mutex mutex;
+std::map<std::string, std::string> progress;
+void on_progress(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex);
+  for (const auto& kv : msg->values) progress[kv.key] = kv.value;
+}
+std::string progress_value(const std::string& key) {
+  std::lock_guard<std::mutex> lock(mutex);
+  return progress[key];
+}
+}  // namespace
+
+TEST(ServiceBeforeCompletion, NamesTheMissingPhase) {
+  ros::NodeHandle nh, pnh("~");
+  int steps = 6;
+  double timeout_s = 120.0;
+  pnh.getParam("steps", steps);
+  pnh.getParam("timeout_s", timeout_s);
+  ros::Subscriber sub = nh.subscribe("/gimbal_controller/progress", 10, on_progress);
+  ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
+  ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(60.0)));
+
+  // Before anything ran: every phase is missing, phase x first.
+  accel_intrinsics::GetIntrinsics::Response r = stand_checks::get_intrinsics("");
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.message.find("phase x (0 of " + std::to_string(steps) + " dwells)"),
+            std::string::npos)
+      << r.message;
+
+  std_srvs::Trigger start;
+  ASSERT_TRUE(ros::service::call("/gimbal_controller/start", start));
+  ASSERT_TRUE(start.response.success) << start.response.message;
+  // A second start while running is refused with a reason.
+  std_srvs::Trigger again;
+  ASSERT_TRUE(ros::service::call("/gimbal_controller/start", again));
+  EXPECT_FALSE(again.response.success);
+  EXPECT_NE(again.response.message.find("already running"), std::string::npos);
+
+  // Wait until the gimbal is in phase y, past its second dwell.
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
+  while (ros::WallTime::now() < deadline &&
+         !(progress_value("phase") == "y" && !progress_value("step").empty() &&
+           std::stoi(progress_value("step")) >= 2)) {
+    ros::WallDuration(0.05).sleep();
+  }
+  ASSERT_EQ(progress_value("phase"), "y") << "the gimbal never reached phase y";
+  ros::WallDuration(0.5).sleep();  // past the reorder window of the dwells before
+
+  r = stand_checks::get_intrinsics("");
+  EXPECT_FALSE(r.success);
+  // Phase x is complete; y is partly done; z has nothing.
+  EXPECT_EQ(r.message.find("phase x ("), std::string::npos) << r.message;
+  EXPECT_NE(r.message.find("phase y ("), std::string::npos) << r.message;
+  EXPECT_NE(r.message.find("phase z (0 of " + std::to_string(steps) + " dwells)"),
+            std::string::npos)
+      << r.message;
+
+  // Abort: DONE closes the run, the fit fails, and the message still names what is missing.
+  std_srvs::Trigger abort;
+  ASSERT_TRUE(ros::service::call("/gimbal_controller/abort", abort));
+  EXPECT_TRUE(abort.response.success) << abort.response.message;
+  ros::WallDuration(1.5).sleep();  // DONE + reorder window (5 s simulated at 10x)
+  r = stand_checks::get_intrinsics("");
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.message.find("phase z (0 of"), std::string::npos) << r.message;
+  EXPECT_EQ(progress_value("state"), "ABORTED");
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "service_before_completion_test");
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  return RUN_ALL_TESTS();
+}
