@@ -5,10 +5,11 @@ PACKAGES=(
   build-essential cmake ros-base-dev catkin rosbash python3-rostest python3-roslaunch
   librosbag-dev python3-rosbag libtf2-ros-dev libtf2-eigen-dev libsensor-msgs-dev
   python3-sensor-msgs libstd-msgs-dev libstd-srvs-dev python3-std-srvs ros-std-srvs
-  libgeometry-msgs-dev python3-geometry-msgs ros-message-generation libmessage-filters-dev
+  libgeometry-msgs-dev python3-geometry-msgs libtf2-msgs-dev libdiagnostic-msgs-dev
+  python3-diagnostic-msgs ros-message-generation libmessage-filters-dev
   libdiagnostic-updater-dev libeigen3-dev libceres-dev libyaml-cpp-dev libboost-math-dev
   nlohmann-json3-dev libcli11-dev libbenchmark-dev libgtest-dev googletest
-  python3-matplotlib python3-numpy python3-yaml catkin-lint
+  python3-rospy python3-rosgraph python3-matplotlib python3-numpy python3-yaml catkin-lint
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

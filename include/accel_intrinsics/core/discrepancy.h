@@ -1,0 +1,255 @@
+// Discrepancy analysis: where do the measurements and the digital twin disagree, which effect of
+// the vocabulary (effects.h, DESIGN.md section 3) is missing, and how much of the gap closes once
+// it is added (DESIGN.md section 2: JSON keys `effects`, `ambiguous`, `gap`).
+//
+// Workflow of analyze():
+//  1. Fit the joint model (plus any known effects in AnalysisOptions::base_effects).
+//  2. Digital twin: evaluate predict_outputs() with the fitted Device at the measured positions
+//     and times; the gap is the normalized residual r / sigma (sigma = dwell standard error),
+//     summarized as reduced chi-square and RMS and localized by phase x accelerometer, by
+//     harmonic of the angle (normalized power of harmonics 0..4, each ~chi2 with 2 dof, 1 for
+//     harmonic 0, under noise), by time bin and by a linear trend in time.
+//  3. Screening: for every candidate effect the dwell means can reveal, the score test of "value
+//     = 0" at the current fit. With A = W^1/2 J_base the weighted Jacobian of the current model
+//     and b = W^1/2 dR/d(value) at value 0, b_perp = (I - A A^+) b is the part of the effect that
+//     the fitted parameters cannot absorb; the statistic T = (b_perp . z)^2 / |b_perp|^2 (z the
+//     normalized residual) is the likelihood-ratio delta chi2 of the linearized refit, ~chi2(1)
+//     under "no effect". |b_perp|^2 / |b|^2 is the information left after projecting out the base
+//     parameters; below `identifiability_floor` the candidate is absorbed (unidentifiable) and is
+//     never named. False alarms across the family of candidates are controlled by the step-down
+//     max-T procedure (Westfall-Young: Holm's method with the critical values calibrated by Monte
+//     Carlo on the candidates' actual correlation), so that on effect-free data at most `alpha`
+//     of the runs name anything; Holm's adjusted p-values from chi2(1) are reported beside them.
+//  4. Greedy forward selection: the best significant candidate (among the `refit_top` strongest,
+//     the one whose nonlinear refit with fit() lowers chi2 most) is added, the model is refit and
+//     re-simulated, and the screening repeats over the remaining candidates until none is
+//     significant (or `max_effects`).
+//  5. Report: named effects with value and standard uncertainty from the final fit and the
+//     family-wise p-value of the step that named them; the gap before and after; ambiguity
+//     (candidates whose score directions correlate by more than `ambiguity_correlation` with a
+//     named one) with the experiment that separates them; what could not be screened.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <iosfwd>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/core/dwell_assembler.h"
+#include "accel_intrinsics/core/effects.h"
+#include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/model.h"
+#include "accel_intrinsics/core/position_table.h"
+
+namespace accel_intrinsics {
+namespace core {
+
+struct AnalysisOptions {
+  double local_gravity = kStandardGravity;  // m/s^2, used for every fit and the twin
+  // Family-wise false-alarm rate across candidates, per run. The requirement is "at most 5 % of
+  // effect-free runs name anything"; a procedure calibrated at exactly 5 % would meet it only on
+  // average (and fail a check on 200 runs half the time), so the default spends half of it:
+  // P(more than 10 of 200 effect-free runs name anything) is then about 1 %.
+  double alpha = 0.025;
+  int max_effects = 4;                      // stop after naming this many
+  int monte_carlo_draws = 10000;            // draws for the max-T calibration of each step
+  std::uint64_t seed = 20261121;            // of the Monte Carlo calibration (reproducible)
+  double ambiguity_correlation = 0.9;       // |corr| of score directions that counts as ambiguous
+  double identifiability_floor = 1e-6;      // |b_perp|^2/|b|^2 below this: absorbed by the base
+  int refit_top = 3;                        // significant candidates refit to pick the best
+  int harmonics = 4;                        // localization: harmonics 0..harmonics of the angle
+  int time_bins = 6;                        // localization: equal time bins over the run
+  double detection_power = 0.9;             // for the reported detection thresholds
+  // Effects known to be present: always fitted, never screened (e.g. from an earlier analysis).
+  std::vector<Effect> base_effects;
+  // Candidates to screen; empty = every effect the table can reveal (default_candidates()).
+  std::vector<Effect> candidates;
+  // Stop as soon as the gap is consistent with noise (chi-square test at 1 %). Off by default:
+  // the omnibus chi-square test spreads one effect over hundreds of degrees of freedom and is far
+  // less powerful than the targeted score tests, so stopping on it would leave effects unnamed.
+  bool stop_when_consistent = false;
+};
+
+// Throws std::invalid_argument naming the field.
+void validate(const AnalysisOptions& options);
+
+// Candidates the dwell means of `table` can reveal: quadratic and cubic non-linearity and offset
+// drift per accelerometer; angle offset, angle scale and axis tilt per phase; backlash per phase
+// only when that phase has a two-way sweep (rows approached from both sides). timing_lag needs
+// raw streams and is never a dwell-mean candidate.
+std::vector<Effect> default_candidates(const PositionTable& table);
+
+// Whole-run summary of a gap.
+struct GapSummary {
+  double chi2 = 0.0;
+  int dof = 0;
+  double reduced_chi2 = 0.0;
+  double rms = 0.0;       // RMS of the unnormalized residuals, m/s^2
+  double p_value = 1.0;   // P(chi2(dof) >= chi2)
+  double band99_low = 0.0;   // 99 % band of the reduced chi-square under noise alone
+  double band99_high = 0.0;
+  bool consistent_with_noise = true;  // reduced chi2 inside the band
+};
+
+// One phase x accelerometer cell of the residuals.
+struct CellGap {
+  int phase = 0;          // x, y, z
+  int accelerometer = 0;  // u, v, w
+  int n = 0;
+  double chi2 = 0.0;      // sum of normalized residuals squared
+  double rms = 0.0;       // m/s^2
+  // Normalized residual power at harmonic k of the angle (k = 0..harmonics): explained sum of
+  // squares of z ~ a cos(k alpha) + b sin(k alpha); ~chi2(2) under noise (chi2(1) for k = 0).
+  // The base fit absorbs part of harmonics 0 and 1: summed over the 9 cells, noise gives about
+  // 6 at k = 0 (9 - 3 offsets), 9 at k = 1 (18 - 9 components of S) and 18 at k >= 2.
+  std::vector<double> harmonic_power;
+};
+
+struct TimeBinGap {
+  double t_begin_s = 0.0;
+  double t_end_s = 0.0;
+  int n = 0;              // residuals (dwells x 3)
+  double chi2 = 0.0;
+  double rms = 0.0;
+};
+
+struct Gap {
+  GapSummary summary;
+  std::vector<CellGap> cells;          // 9 cells, phase-major
+  std::vector<TimeBinGap> time_bins;
+  std::array<double, 3> trend_z{{0, 0, 0}};  // per accelerometer: t-statistic of z vs time
+};
+
+// The digital twin of a fit: its Device (S, O and fitted effect terms).
+Device device_from_fit(const FitResult& fit);
+// Measured minus twin (m/s^2), one vector per row of the table.
+std::vector<Eigen::Vector3d> twin_residuals(const PositionTable& table, const Device& device,
+                                            double local_gravity);
+// Gap of a fit: twin residuals normalized by the dwell standard errors; dof = 3 rows - 12 -
+// number of fitted effects.
+Gap compute_gap(const PositionTable& table, const FitResult& fit, int harmonics = 4,
+                int time_bins = 6);
+
+// One candidate at one screening step.
+struct CandidateScore {
+  Effect effect;                 // value = one-step (linearized) estimate
+  bool identifiable = true;
+  double information_ratio = 0;  // |b_perp|^2 / |b|^2
+  double score_chi2 = 0;         // T, ~chi2(1) under no effect
+  double estimate_std = 0;       // 1 / |b_perp| (linearized, known sigma)
+  double p_raw = 1;              // P(chi2(1) >= T)
+  double p_holm = 1;             // Holm-adjusted over the identifiable candidates
+  double p_adjusted = 1;         // step-down max-T (Monte Carlo), the family-wise p-value
+  double detection_threshold = 0;  // |value| named with probability detection_power (theory)
+  double delta_chi2 = 0;         // from the nonlinear refit, when one was made (else 0)
+  bool refit = false;
+};
+
+struct ScreeningStep {
+  std::string model;                     // model label the step started from
+  GapSummary gap;                        // of that model
+  std::vector<CandidateScore> candidates;  // sorted by score, strongest first
+  double critical_chi2 = 0;              // max-T critical value of the first step-down stage
+  std::string chosen;                    // label of the effect added, empty if none
+};
+
+struct NamedEffect {
+  Effect effect;          // value from the final fit
+  double std = 0;         // standard uncertainty from the final fit
+  double p_value = 1;     // family-wise (step-down max-T) p-value at the step that named it
+  double p_raw = 1;       // single-test p-value of its score statistic at that step
+  double score_chi2 = 0;
+  double delta_chi2 = 0;  // chi2 drop of the refit that added it
+  int step = 0;
+  // The candidate whose score direction was closest to this one's at that step, and |corr|.
+  std::string closest_alternative;
+  double closest_correlation = 0;
+};
+
+struct Ambiguity {
+  std::string named;                    // label of the named effect, or empty
+  std::vector<std::string> candidates;  // labels that explain the data almost equally
+  double correlation = 0;               // |corr| of their score directions after the base fit
+  std::string separating_experiment;
+};
+
+struct AnalysisResult {
+  FitResult before_fit;  // base model
+  FitResult after_fit;   // base model + named effects
+  Gap before;
+  Gap after;
+  std::vector<NamedEffect> effects;
+  std::vector<Ambiguity> ambiguous;
+  std::vector<ScreeningStep> steps;
+  std::vector<CandidateScore> unidentifiable;  // candidates absorbed by the base model (step 1)
+  std::vector<std::string> not_screened;       // what dwell means cannot show, and why
+  std::vector<std::string> unobservable;       // e.g. local gravity: no residual shows it
+  std::string stop_reason;
+  double local_gravity = kStandardGravity;
+};
+
+// The whole workflow. Throws FitError when even the base model cannot be fitted.
+AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& options = {});
+
+// JSON for offline_fit --analyze: `effects`, `ambiguous`, `gap {before, after}` (DESIGN.md
+// section 2) plus localization, screening steps and notes.
+nlohmann::json analysis_to_json(const AnalysisResult& result);
+
+// Human-readable report (a few dozen lines): gap before/after, the worst cells and harmonics,
+// named effects, ambiguity, notes. For offline_fit's text output and the calibration node's log.
+void write_analysis_report(std::ostream& out, const AnalysisResult& result);
+
+// Long-format CSV for plots: one line per dwell and accelerometer,
+//   phase,step,angle_rad,time_s,approach,accelerometer,measured,sigma,
+//   model_before,residual_before,z_before,model_after,residual_after,z_after
+// (models from the digital twins of the two fits). Throws std::runtime_error if unwritable.
+void write_residuals_csv(const std::string& path, const PositionTable& table,
+                         const FitResult& before_fit, const FitResult& after_fit);
+void write_residuals_csv(std::ostream& out, const PositionTable& table, const FitResult& before_fit,
+                         const FitResult& after_fit);
+
+// ---- timing_lag from raw streams ----------------------------------------------------------------
+// Dwell means cannot show a timing lag (the gimbal is at rest during a dwell); the samples taken
+// while it moves can. The commanded trajectory is rebuilt from the gimbal events (the profile of
+// gimbal_pose_at(), the one the controller and the simulator share), the fitted device is
+// evaluated along it at stamp - lag, and the score test of "lag = 0" uses the derivative of the
+// outputs along the trajectory: T = (sum J r / s^2)^2 / sum J^2 / s^2, J = -dR/dt, with the
+// per-sample noise s of each accelerometer estimated from the samples at rest. The lag is then
+// estimated by a few Gauss-Newton steps. One candidate, so its own family: p ~ chi2(1).
+struct TimingLagOptions {
+  double local_gravity = kStandardGravity;
+  double alpha = 0.025;           // false-alarm rate of this one test
+  int iterations = 4;             // Gauss-Newton steps for the estimate
+  double derivative_step_s = 1e-3;
+  double detection_power = 0.9;
+};
+
+struct TimingLagResult {
+  bool named = false;
+  Effect effect{EffectKind::TimingLag, 0, 0.0};  // value: estimated lag, s (IMU stamps late)
+  double std = 0.0;                  // s
+  double score_chi2 = 0.0;
+  double p_value = 1.0;
+  double detection_threshold = 0.0;  // lag named with probability detection_power, s
+  std::size_t samples_moving = 0;    // samples whose model output changes with the lag
+  std::size_t samples_at_rest = 0;
+  Eigen::Vector3d noise_std = Eigen::Vector3d::Zero();  // per-sample noise, m/s^2
+};
+
+// Throws std::invalid_argument when the events hold no complete move or the samples none at rest.
+TimingLagResult screen_timing_lag(const std::vector<GimbalEvent>& commands,
+                                  const std::vector<ImuSample>& samples, const FitResult& fit,
+                                  const TimingLagOptions& options = {});
+nlohmann::json timing_lag_to_json(const TimingLagResult& result);
+
+// Theoretical detection threshold of a single chi2(1) test with critical value `critical_chi2`:
+// the non-centrality lambda at which the test rejects with probability `power` (Boost.Math
+// non-central chi-square); the effect value is sqrt(lambda) * estimate_std.
+double noncentrality_for_power(double critical_chi2, double power);
+
+}  // namespace core
+}  // namespace accel_intrinsics

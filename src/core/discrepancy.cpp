@@ -1,0 +1,1032 @@
+#include "accel_intrinsics/core/discrepancy.h"
+
+#include <ceres/jet.h>
+
+#include "accel_intrinsics/core/simulator.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <boost/math/distributions/chi_squared.hpp>
+#include <boost/math/distributions/non_central_chi_squared.hpp>
+#include <cmath>
+#include <fstream>
+#include <iomanip>
+#include <limits>
+#include <numeric>
+#include <ostream>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+
+namespace accel_intrinsics {
+namespace core {
+
+namespace {
+
+bool same_term(const Effect& a, const Effect& b) { return a.kind == b.kind && a.target == b.target; }
+
+bool contains_term(const std::vector<Effect>& list, const Effect& e) {
+  return std::any_of(list.begin(), list.end(), [&](const Effect& x) { return same_term(x, e); });
+}
+
+// P(chi2(dof) >= x).
+double chi2_sf(double x, double dof) {
+  if (!(x > 0.0)) return 1.0;
+  boost::math::chi_squared_distribution<double> dist(dof);
+  return boost::math::cdf(boost::math::complement(dist, x));
+}
+
+double chi2_quantile(double p, double dof) {
+  boost::math::chi_squared_distribution<double> dist(dof);
+  return boost::math::quantile(dist, p);
+}
+
+// Which phases have rows approached from both sides (a two-way sweep).
+std::array<bool, 3> two_way_phases(const std::vector<DwellGeometry>& geoms) {
+  std::array<bool, 3> up{{false, false, false}}, down{{false, false, false}};
+  for (const DwellGeometry& g : geoms) {
+    (g.approach > 0 ? up : down)[index(g.phase)] = true;
+  }
+  return {{up[0] && down[0], up[1] && down[1], up[2] && down[2]}};
+}
+
+// Standard errors of the dwell means, the weights of every fit.
+std::vector<Eigen::Vector3d> weights_for(const PositionTable& table, const FitResult& fit) {
+  if (fit.standard_errors.size() == table.rows.size()) return fit.standard_errors;
+  return dwell_standard_errors(table);
+}
+
+// ---- Jacobians of the one model (predict_outputs) by forward-mode automatic differentiation ----
+
+using Jet1 = ceres::Jet<double, 1>;
+
+// Parameters: S row-major (0..8), O (9..11), values of `terms` (12..). Returns d(R)/d(param)
+// for every row and accelerometer (index 3 row + s), divided by the standard error.
+Eigen::VectorXd weighted_derivative(const std::vector<DwellGeometry>& geoms,
+                                    const std::vector<Eigen::Vector3d>& se, const Device& device,
+                                    const std::vector<Effect>& terms, int param, double g) {
+  Jet1 S[9], O[3];
+  for (int i = 0; i < 9; ++i) S[i] = Jet1(device.S(i / 3, i % 3));
+  for (int i = 0; i < 3; ++i) O[i] = Jet1(device.O(i));
+  std::vector<Jet1> values(terms.size());
+  for (std::size_t i = 0; i < terms.size(); ++i) values[i] = Jet1(terms[i].value);
+  if (param < 9) {
+    S[param].v[0] = 1.0;
+  } else if (param < 12) {
+    O[param - 9].v[0] = 1.0;
+  } else {
+    values.at(static_cast<std::size_t>(param - 12)).v[0] = 1.0;
+  }
+  const Jet1* value_ptr = values.empty() ? nullptr : values.data();
+  Eigen::VectorXd column(3 * static_cast<Eigen::Index>(geoms.size()));
+  for (std::size_t r = 0; r < geoms.size(); ++r) {
+    const Eigen::Matrix<Jet1, 3, 1> R = predict_outputs<Jet1>(S, O, terms, value_ptr, geoms[r], g);
+    for (int s = 0; s < 3; ++s) column(3 * static_cast<Eigen::Index>(r) + s) = R(s).v[0] / se[r](s);
+  }
+  return column;
+}
+
+// Orthonormal basis of the column space of A (numerical rank).
+Eigen::MatrixXd column_space(const Eigen::MatrixXd& A) {
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(A);
+  const Eigen::Index rank = qr.rank();
+  Eigen::MatrixXd Q = qr.householderQ() * Eigen::MatrixXd::Identity(A.rows(), rank);
+  return Q;
+}
+
+// Normalized twin residuals z (index 3 row + s).
+Eigen::VectorXd normalized_residuals(const std::vector<Eigen::Vector3d>& residuals,
+                                     const std::vector<Eigen::Vector3d>& se) {
+  Eigen::VectorXd z(3 * static_cast<Eigen::Index>(residuals.size()));
+  for (std::size_t r = 0; r < residuals.size(); ++r) {
+    for (int s = 0; s < 3; ++s) z(3 * static_cast<Eigen::Index>(r) + s) = residuals[r](s) / se[r](s);
+  }
+  return z;
+}
+
+GapSummary summarize(double chi2, int dof, double sum_sq, int n) {
+  GapSummary g;
+  g.chi2 = chi2;
+  g.dof = dof;
+  g.rms = n > 0 ? std::sqrt(sum_sq / n) : 0.0;
+  if (dof > 0) {
+    g.reduced_chi2 = chi2 / dof;
+    g.p_value = chi2_sf(chi2, dof);
+    g.band99_low = chi2_quantile(0.005, dof) / dof;
+    g.band99_high = chi2_quantile(0.995, dof) / dof;
+    g.consistent_with_noise = g.reduced_chi2 >= g.band99_low && g.reduced_chi2 <= g.band99_high;
+  }
+  return g;
+}
+
+// Screening of the candidates at the current fit.
+struct Screening {
+  ScreeningStep step;
+  std::vector<Eigen::VectorXd> directions;  // unit b_perp of step.candidates (identifiable only)
+  Eigen::MatrixXd correlation;              // of the identifiable candidates, in step order
+  std::vector<int> identifiable_index;      // step.candidates index -> row of correlation (-1)
+};
+
+Screening screen(const PositionTable& table, const std::vector<DwellGeometry>& geoms,
+                 const FitResult& fit, const std::vector<Effect>& model_terms,
+                 const std::vector<Effect>& candidates, const AnalysisOptions& options, int step_number) {
+  const double g = options.local_gravity;
+  const std::vector<Eigen::Vector3d> se = weights_for(table, fit);
+  Device device = device_from_fit(fit);
+  // The model terms with their fitted values (same order as model_terms).
+  std::vector<Effect> terms = model_terms;
+  for (Effect& t : terms) {
+    for (const Effect& f : device.effects) {
+      if (same_term(t, f)) t.value = f.value;
+    }
+  }
+  device.effects = terms;
+  const Eigen::VectorXd z = normalized_residuals(twin_residuals(table, device, g), se);
+  const Eigen::Index n = z.size();
+  const int p = 12 + static_cast<int>(terms.size());
+  Eigen::MatrixXd A(n, p);
+  for (int j = 0; j < p; ++j) A.col(j) = weighted_derivative(geoms, se, device, terms, j, g);
+  const Eigen::MatrixXd Q = column_space(A);
+
+  Screening out;
+  out.step.model = fit.model_label();
+  std::vector<CandidateScore> scores;
+  std::vector<Eigen::VectorXd> dirs;
+  for (const Effect& c : candidates) {
+    CandidateScore cs;
+    cs.effect = c;
+    cs.effect.value = 0.0;
+    std::vector<Effect> with = terms;
+    Effect zero = c;
+    zero.value = 0.0;
+    with.push_back(zero);
+    const Eigen::VectorXd b = weighted_derivative(geoms, se, device, with, p, g);
+    const Eigen::VectorXd b_perp = b - Q * (Q.transpose() * b);
+    const double bb = b.squaredNorm();
+    const double pp = b_perp.squaredNorm();
+    cs.information_ratio = bb > 0.0 ? pp / bb : 0.0;
+    cs.identifiable = bb > 0.0 && std::isfinite(pp) && cs.information_ratio >= options.identifiability_floor;
+    if (cs.identifiable) {
+      const double dot = b_perp.dot(z);
+      cs.score_chi2 = dot * dot / pp;
+      cs.effect.value = dot / pp;
+      cs.estimate_std = 1.0 / std::sqrt(pp);
+      cs.p_raw = std::erfc(std::sqrt(0.5 * cs.score_chi2));
+      dirs.push_back(b_perp / std::sqrt(pp));
+    } else {
+      dirs.emplace_back();
+    }
+    scores.push_back(cs);
+  }
+  // Strongest first (identifiable before unidentifiable).
+  std::vector<std::size_t> order(scores.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    if (scores[a].identifiable != scores[b].identifiable) return scores[a].identifiable;
+    return scores[a].score_chi2 > scores[b].score_chi2;
+  });
+  std::vector<int> ident;
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    out.step.candidates.push_back(scores[order[k]]);
+    out.directions.push_back(dirs[order[k]]);
+    out.identifiable_index.push_back(scores[order[k]].identifiable ? static_cast<int>(ident.size()) : -1);
+    if (scores[order[k]].identifiable) ident.push_back(static_cast<int>(k));
+  }
+  const int m = static_cast<int>(ident.size());
+  out.correlation = Eigen::MatrixXd::Identity(m, m);
+  for (int i = 0; i < m; ++i) {
+    for (int j = 0; j < i; ++j) {
+      const double c = out.directions[ident[i]].dot(out.directions[ident[j]]);
+      out.correlation(i, j) = out.correlation(j, i) = c;
+    }
+  }
+  if (m == 0) return out;
+
+  // Holm on the chi2(1) p-values (already in descending T = ascending p order).
+  double running = 0.0;
+  for (int k = 0; k < m; ++k) {
+    CandidateScore& cs = out.step.candidates[ident[k]];
+    running = std::max(running, std::min(1.0, cs.p_raw * (m - k)));
+    cs.p_holm = running;
+  }
+
+  // Step-down max-T, calibrated by Monte Carlo: under "no effect" the score vector
+  // (q_c . z)_c is N(0, C) with C the correlation of the directions (linearized model).
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(out.correlation);
+  const Eigen::VectorXd lambda = eig.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+  const Eigen::MatrixXd L = eig.eigenvectors() * lambda.asDiagonal();
+  std::mt19937_64 rng(options.seed + 7919u * static_cast<std::uint64_t>(step_number));
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const int draws = options.monte_carlo_draws;
+  std::vector<long> exceed(m, 0);
+  std::vector<double> first_stage_max(draws);
+  Eigen::VectorXd xi(m), w(m);
+  std::vector<double> suffix(m);
+  for (int d = 0; d < draws; ++d) {
+    for (int i = 0; i < m; ++i) xi(i) = normal(rng);
+    w = L * xi;
+    double mx = 0.0;
+    for (int k = m - 1; k >= 0; --k) {
+      mx = std::max(mx, w(k) * w(k));
+      suffix[k] = mx;
+    }
+    first_stage_max[d] = suffix[0];
+    for (int k = 0; k < m; ++k) {
+      if (suffix[k] >= out.step.candidates[ident[k]].score_chi2) ++exceed[k];
+    }
+  }
+  running = 0.0;
+  for (int k = 0; k < m; ++k) {
+    CandidateScore& cs = out.step.candidates[ident[k]];
+    running = std::max(running, (exceed[k] + 1.0) / (draws + 1.0));
+    // The Monte Carlo resolves p down to 1 / (draws + 1); below that, Holm's chi2(1) bound (valid,
+    // conservative) gives the finer figure.
+    cs.p_adjusted = exceed[k] == 0 ? std::min(running, cs.p_holm) : running;
+  }
+  const std::size_t q = std::min<std::size_t>(
+      first_stage_max.size() - 1,
+      static_cast<std::size_t>(std::ceil((1.0 - options.alpha) * draws)) - 1);
+  std::nth_element(first_stage_max.begin(), first_stage_max.begin() + static_cast<long>(q), first_stage_max.end());
+  out.step.critical_chi2 = first_stage_max[q];
+  const double lambda90 = noncentrality_for_power(out.step.critical_chi2, options.detection_power);
+  for (int k = 0; k < m; ++k) {
+    CandidateScore& cs = out.step.candidates[ident[k]];
+    cs.detection_threshold = std::sqrt(lambda90) * cs.estimate_std;
+  }
+  return out;
+}
+
+std::string separating_experiment(const Effect& a, const Effect& b) {
+  auto pair_is = [&](EffectKind x, EffectKind y) {
+    return (a.kind == x && b.kind == y) || (a.kind == y && b.kind == x);
+  };
+  if (pair_is(EffectKind::AngleOffset, EffectKind::Backlash)) {
+    return "a two-way sweep (ProtocolOptions::two_way: up, then back down) separates backlash from an "
+           "angle offset: backlash flips sign with the direction of approach, an offset does not";
+  }
+  if (pair_is(EffectKind::AngleScale, EffectKind::OffsetDrift)) {
+    return "a closing position at 360 deg (repeat alpha = 0 at the end of each phase) separates drift "
+           "from an angle-scale error: at the repeated position drift changes every output by d * dt, "
+           "an angle-scale error by eps * 2 pi times the slope of that output (zero at its extremum); "
+           "a two-way sweep, which decouples time from angle, also separates them";
+  }
+  if (pair_is(EffectKind::AngleScale, EffectKind::AngleOffset)) {
+    return "a closing position at 360 deg separates an angle-scale error from an angle offset: it is "
+           "the 0 deg position again, so an offset reads the same there while a scale error has grown "
+           "to eps * 2 pi";
+  }
+  if (a.kind == EffectKind::OffsetDrift || b.kind == EffectKind::OffsetDrift) {
+    return "repeating the run in another phase order or with a closing position decouples time from "
+           "position and separates drift from the other term";
+  }
+  return "a protocol that decouples the two terms (more positions, other phase order, a two-way "
+         "sweep) separates them; compare the per-harmonic residual power of both models";
+}
+
+double ambiguity_threshold_corr(const Screening& s, int a_row, int b_row) {
+  return std::abs(s.correlation(a_row, b_row));
+}
+
+}  // namespace
+
+void validate(const AnalysisOptions& options) {
+  auto fail = [](const std::string& m) { throw std::invalid_argument("analysis: " + m); };
+  if (!std::isfinite(options.local_gravity) || options.local_gravity <= 0.0) fail("local_gravity must be positive");
+  if (!(options.alpha > 0.0 && options.alpha < 1.0)) fail("alpha must be in (0, 1)");
+  if (options.max_effects < 0) fail("max_effects must be >= 0");
+  if (options.monte_carlo_draws < 100) fail("monte_carlo_draws must be >= 100");
+  if (!(options.ambiguity_correlation > 0.0 && options.ambiguity_correlation <= 1.0)) {
+    fail("ambiguity_correlation must be in (0, 1]");
+  }
+  if (!(options.identifiability_floor >= 0.0 && options.identifiability_floor < 1.0)) {
+    fail("identifiability_floor must be in [0, 1)");
+  }
+  if (options.refit_top < 1) fail("refit_top must be >= 1");
+  if (options.harmonics < 0 || options.harmonics > 32) fail("harmonics must be in [0, 32]");
+  if (options.time_bins < 1) fail("time_bins must be >= 1");
+  if (!(options.detection_power > 0.0 && options.detection_power < 1.0)) fail("detection_power must be in (0, 1)");
+}
+
+std::vector<Effect> default_candidates(const PositionTable& table) {
+  const std::array<bool, 3> two_way = two_way_phases(dwell_geometries(table));
+  std::vector<Effect> out;
+  for (int s = 0; s < 3; ++s) out.push_back(Effect{EffectKind::QuadraticNonlinearity, s, 0.0});
+  for (int s = 0; s < 3; ++s) out.push_back(Effect{EffectKind::CubicNonlinearity, s, 0.0});
+  for (int p = 0; p < 3; ++p) out.push_back(Effect{EffectKind::AngleOffset, p, 0.0});
+  for (int p = 0; p < 3; ++p) out.push_back(Effect{EffectKind::AngleScale, p, 0.0});
+  for (int p = 0; p < 3; ++p) out.push_back(Effect{EffectKind::AxisTilt, p, 0.0});
+  for (int s = 0; s < 3; ++s) out.push_back(Effect{EffectKind::OffsetDrift, s, 0.0});
+  for (int p = 0; p < 3; ++p) {
+    if (two_way[p]) out.push_back(Effect{EffectKind::Backlash, p, 0.0});
+  }
+  return out;
+}
+
+Device device_from_fit(const FitResult& fit) {
+  Device d;
+  d.S = fit.S;
+  d.O = fit.O;
+  d.effects = fit.effects;
+  return d;
+}
+
+std::vector<Eigen::Vector3d> twin_residuals(const PositionTable& table, const Device& device,
+                                            double local_gravity) {
+  const std::vector<DwellGeometry> geoms = dwell_geometries(table);
+  std::vector<Eigen::Vector3d> out(table.rows.size());
+  for (std::size_t r = 0; r < table.rows.size(); ++r) {
+    out[r] = table.rows[r].mean - predict_outputs(device, geoms[r], local_gravity);
+  }
+  return out;
+}
+
+Gap compute_gap(const PositionTable& table, const FitResult& fit, int harmonics, int time_bins) {
+  const std::vector<DwellGeometry> geoms = dwell_geometries(table);
+  const std::vector<Eigen::Vector3d> se = weights_for(table, fit);
+  const std::vector<Eigen::Vector3d> res = twin_residuals(table, device_from_fit(fit), fit.local_gravity);
+  Gap gap;
+  double chi2 = 0.0, sum_sq = 0.0;
+  for (std::size_t r = 0; r < res.size(); ++r) {
+    for (int s = 0; s < 3; ++s) {
+      const double zz = res[r](s) / se[r](s);
+      chi2 += zz * zz;
+      sum_sq += res[r](s) * res[r](s);
+    }
+  }
+  const int n = 3 * static_cast<int>(res.size());
+  const int dof = n - 12 - static_cast<int>(fit.effects.size());
+  gap.summary = summarize(chi2, dof, sum_sq, n);
+
+  // Phase x accelerometer cells with harmonic powers.
+  for (int p = 0; p < 3; ++p) {
+    std::vector<std::size_t> rows;
+    for (std::size_t r = 0; r < geoms.size(); ++r) {
+      if (index(geoms[r].phase) == p) rows.push_back(r);
+    }
+    for (int s = 0; s < 3; ++s) {
+      CellGap cell;
+      cell.phase = p;
+      cell.accelerometer = s;
+      cell.n = static_cast<int>(rows.size());
+      Eigen::VectorXd zc(cell.n);
+      double cell_sq = 0.0;
+      for (int i = 0; i < cell.n; ++i) {
+        const std::size_t r = rows[i];
+        zc(i) = res[r](s) / se[r](s);
+        cell_sq += res[r](s) * res[r](s);
+      }
+      cell.chi2 = zc.squaredNorm();
+      cell.rms = cell.n > 0 ? std::sqrt(cell_sq / cell.n) : 0.0;
+      for (int k = 0; k <= harmonics; ++k) {
+        if (cell.n == 0) {
+          cell.harmonic_power.push_back(0.0);
+          continue;
+        }
+        Eigen::MatrixXd X(cell.n, k == 0 ? 1 : 2);
+        for (int i = 0; i < cell.n; ++i) {
+          const double a = geoms[rows[i]].angle_rad;
+          if (k == 0) {
+            X(i, 0) = 1.0;
+          } else {
+            X(i, 0) = std::cos(k * a);
+            X(i, 1) = std::sin(k * a);
+          }
+        }
+        // Explained sum of squares of the least-squares projection onto the harmonic.
+        Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(X);
+        const Eigen::VectorXd coef = cod.solve(zc);
+        cell.harmonic_power.push_back((X * coef).squaredNorm());
+      }
+      gap.cells.push_back(cell);
+    }
+  }
+
+  // Time bins and trends.
+  if (!geoms.empty()) {
+    double t_min = geoms.front().time_s, t_max = geoms.front().time_s;
+    for (const DwellGeometry& g : geoms) {
+      t_min = std::min(t_min, g.time_s);
+      t_max = std::max(t_max, g.time_s);
+    }
+    const int bins = std::max(1, time_bins);
+    const double width = (t_max - t_min) / bins;
+    gap.time_bins.resize(bins);
+    std::vector<double> bin_sq(bins, 0.0);
+    for (int b = 0; b < bins; ++b) {
+      gap.time_bins[b].t_begin_s = t_min + b * width;
+      gap.time_bins[b].t_end_s = b + 1 == bins ? t_max : t_min + (b + 1) * width;
+    }
+    double t_mean = 0.0;
+    for (const DwellGeometry& g : geoms) t_mean += g.time_s;
+    t_mean /= static_cast<double>(geoms.size());
+    double stt = 0.0;
+    std::array<double, 3> stz{{0, 0, 0}};
+    for (std::size_t r = 0; r < geoms.size(); ++r) {
+      int b = width > 0.0 ? static_cast<int>((geoms[r].time_s - t_min) / width) : 0;
+      b = std::min(std::max(b, 0), bins - 1);
+      const double dt = geoms[r].time_s - t_mean;
+      stt += dt * dt;
+      for (int s = 0; s < 3; ++s) {
+        const double zz = res[r](s) / se[r](s);
+        gap.time_bins[b].chi2 += zz * zz;
+        gap.time_bins[b].n += 1;
+        bin_sq[b] += res[r](s) * res[r](s);
+        stz[s] += dt * zz;
+      }
+    }
+    for (int b = 0; b < bins; ++b) {
+      gap.time_bins[b].rms = gap.time_bins[b].n > 0 ? std::sqrt(bin_sq[b] / gap.time_bins[b].n) : 0.0;
+    }
+    for (int s = 0; s < 3; ++s) gap.trend_z[s] = stt > 0.0 ? stz[s] / std::sqrt(stt) : 0.0;
+  }
+  return gap;
+}
+
+namespace {
+
+// The commanded schedule rebuilt from the gimbal events (stamps relative to the first event).
+std::vector<ScheduledPosition> schedule_from_events(std::vector<GimbalEvent> events, double* t0) {
+  std::stable_sort(events.begin(), events.end(),
+                   [](const GimbalEvent& a, const GimbalEvent& b) { return a.stamp_s < b.stamp_s; });
+  std::vector<ScheduledPosition> schedule;
+  if (events.empty()) return schedule;
+  *t0 = events.front().stamp_s;
+  bool seen[3] = {false, false, false};
+  double previous_angle[3] = {0, 0, 0};
+  int previous_approach[3] = {+1, +1, +1};
+  bool open = false;  // the last position has a MOVING but no end yet
+  for (const GimbalEvent& e : events) {
+    const double t = e.stamp_s - *t0;
+    if (e.state == GimbalState::Moving || e.state == GimbalState::Done) {
+      if (open) schedule.back().dwell_end_s = t;
+      open = false;
+    }
+    if (e.state == GimbalState::Moving) {
+      ScheduledPosition pos;
+      pos.phase = e.phase;
+      pos.step = e.step;
+      pos.steps = e.steps;
+      pos.angle_rad = e.angle_rad;
+      pos.move_start_s = t;
+      pos.settled_s = std::numeric_limits<double>::quiet_NaN();
+      const int p = index(e.phase);
+      if (!seen[p]) {
+        pos.approach = +1;
+      } else if (e.angle_rad > previous_angle[p]) {
+        pos.approach = +1;
+      } else if (e.angle_rad < previous_angle[p]) {
+        pos.approach = -1;
+      } else {
+        pos.approach = -previous_approach[p];
+      }
+      seen[p] = true;
+      previous_angle[p] = e.angle_rad;
+      previous_approach[p] = pos.approach;
+      schedule.push_back(pos);
+      open = true;
+    } else if (e.state == GimbalState::Settled && open && !schedule.empty()) {
+      schedule.back().settled_s = t;
+    }
+  }
+  // Positions without a SETTLED are not usable (the move profile needs its end).
+  std::vector<ScheduledPosition> complete;
+  for (const ScheduledPosition& p : schedule) {
+    if (std::isfinite(p.settled_s)) complete.push_back(p);
+  }
+  return complete;
+}
+
+}  // namespace
+
+TimingLagResult screen_timing_lag(const std::vector<GimbalEvent>& commands, const std::vector<ImuSample>& samples,
+                                  const FitResult& fit, const TimingLagOptions& options) {
+  if (!(options.derivative_step_s > 0.0) || options.iterations < 0 || !(options.alpha > 0.0 && options.alpha < 1.0)) {
+    throw std::invalid_argument("screen_timing_lag: need derivative_step_s > 0, iterations >= 0, alpha in (0, 1)");
+  }
+  double t0 = 0.0;
+  const std::vector<ScheduledPosition> schedule = schedule_from_events(commands, &t0);
+  if (schedule.size() < 2) {
+    throw std::invalid_argument("screen_timing_lag: the gimbal events hold fewer than two complete positions");
+  }
+  const Device device = device_from_fit(fit);
+  std::vector<double> effect_values;
+  for (const Effect& e : device.effects) effect_values.push_back(e.value);
+  if (effect_values.empty()) effect_values.push_back(0.0);  // never read: no terms
+  const double g = options.local_gravity;
+  const double h = options.derivative_step_s;
+  auto model_at = [&](double t, GimbalPose* out_pose) {
+    const GimbalPose pose = gimbal_pose_at(schedule, t);
+    *out_pose = pose;
+    DwellGeometry geom;
+    geom.phase = pose.phase;
+    geom.angle_rad = pose.angle_rad;
+    geom.time_s = t;
+    geom.approach = pose.approach;
+    return predict_outputs(device, geom, g);
+  };
+  const double t_end = schedule.back().dwell_end_s > 0.0 ? schedule.back().dwell_end_s
+                                                          : schedule.back().settled_s;
+  // Residuals and derivatives at a trial lag; J = d(model)/d(lag) = -dR/dt at stamp - lag.
+  struct Terms {
+    double jr = 0, jj = 0, rr_moving = 0;
+    std::size_t moving = 0, rest = 0;
+    // The fitted S and O come from the dwell means with covariance C; their error leaks into the
+    // residuals of the moving samples along F = dR/d(S, O). With u = F^T W J (12 values), the
+    // score J^T W r has variance jj + u^T C u and the lag estimate 1/jj + u^T C u / jj^2.
+    Eigen::Matrix<double, 12, 1> u = Eigen::Matrix<double, 12, 1>::Zero();
+  };
+  Eigen::Vector3d noise = Eigen::Vector3d::Zero();
+  auto accumulate = [&](double lag, bool estimate_noise) {
+    Terms terms;
+    Eigen::Vector3d sum_sq = Eigen::Vector3d::Zero();
+    for (const ImuSample& sample : samples) {
+      const double t = sample.stamp_s - t0 - lag;
+      if (t - h < 0.0 || t + h > t_end || !sample.outputs.allFinite()) continue;
+      GimbalPose pa, pb, pc;
+      const Eigen::Vector3d m = model_at(t, &pa);
+      const Eigen::Vector3d before = model_at(t - h, &pb);
+      const Eigen::Vector3d after = model_at(t + h, &pc);
+      if (pa.phase != pb.phase || pa.phase != pc.phase) continue;  // a phase change: no trajectory
+      const Eigen::Vector3d r = sample.outputs - m;
+      const Eigen::Vector3d J = -(after - before) / (2.0 * h);
+      if (pb.angle_rad == pc.angle_rad) {  // at rest: the lag does not change the model
+        ++terms.rest;
+        sum_sq += r.cwiseProduct(r);
+        continue;
+      }
+      ++terms.moving;
+      if (estimate_noise) continue;
+      for (int s = 0; s < 3; ++s) {
+        const double w = 1.0 / (noise(s) * noise(s));
+        terms.jr += w * J(s) * r(s);
+        terms.jj += w * J(s) * J(s);
+        terms.rr_moving += w * r(s) * r(s);
+      }
+      // F for the linear part of the model: dR_s/dS_sj = f_j, dR_s/dO_s = 1 (effects held fixed).
+      DwellGeometry geom;
+      geom.phase = pa.phase;
+      geom.angle_rad = pa.angle_rad;
+      geom.time_s = t;
+      geom.approach = pa.approach;
+      const Eigen::Vector3d f = specific_force(device.effects, effect_values.data(), geom, g);
+      for (int s = 0; s < 3; ++s) {
+        const double wj = J(s) / (noise(s) * noise(s));
+        for (int j = 0; j < 3; ++j) terms.u(3 * s + j) += f(j) * wj;
+        terms.u(9 + s) += wj;
+      }
+    }
+    if (estimate_noise && terms.rest > 1) noise = (sum_sq / static_cast<double>(terms.rest)).cwiseSqrt();
+    return terms;
+  };
+  const Terms rest = accumulate(0.0, true);
+  const Eigen::Matrix<double, 12, 12>& C = fit.covariance;
+  if (rest.rest < 2 || !(noise.minCoeff() > 0.0)) {
+    throw std::invalid_argument("screen_timing_lag: no samples at rest to estimate the noise from");
+  }
+  TimingLagResult result;
+  result.noise_std = noise;
+  const Terms at_zero = accumulate(0.0, false);
+  result.samples_moving = at_zero.moving;
+  result.samples_at_rest = at_zero.rest;
+  if (at_zero.moving == 0 || !(at_zero.jj > 0.0)) {
+    throw std::invalid_argument("screen_timing_lag: no samples taken while the gimbal moved");
+  }
+  const double leak0 = std::max(0.0, static_cast<double>(at_zero.u.transpose() * C * at_zero.u));
+  result.score_chi2 = at_zero.jr * at_zero.jr / (at_zero.jj + leak0);
+  result.p_value = std::erfc(std::sqrt(0.5 * result.score_chi2));
+  double lag = at_zero.jr / at_zero.jj;
+  Terms last = at_zero;
+  for (int i = 0; i < options.iterations; ++i) {
+    last = accumulate(lag, false);
+    if (!(last.jj > 0.0)) break;
+    lag += last.jr / last.jj;
+  }
+  last = accumulate(lag, false);
+  const double reduced = last.moving > 1 ? last.rr_moving / (3.0 * static_cast<double>(last.moving) - 1.0) : 1.0;
+  result.effect.value = lag;
+  const Terms& final_terms = last.jj > 0.0 ? last : at_zero;
+  const double leak = std::max(0.0, static_cast<double>(final_terms.u.transpose() * C * final_terms.u));
+  result.std = std::sqrt(1.0 / final_terms.jj + leak / (final_terms.jj * final_terms.jj)) *
+               std::sqrt(std::max(1.0, reduced));
+  const double critical = chi2_quantile(1.0 - options.alpha, 1.0);
+  // Non-centrality of a lag L: (L jj)^2 / (jj + leak).
+  result.detection_threshold = std::sqrt(noncentrality_for_power(critical, options.detection_power)) *
+                               std::sqrt(at_zero.jj + leak0) / at_zero.jj;
+  result.named = result.p_value <= options.alpha;
+  return result;
+}
+
+nlohmann::json timing_lag_to_json(const TimingLagResult& r) {
+  return {{"name", r.effect.name()},
+          {"target", r.effect.target_name()},
+          {"named", r.named},
+          {"value", r.effect.value},
+          {"std", r.std},
+          {"p_value", r.p_value},
+          {"score_chi2", r.score_chi2},
+          {"detection_threshold", r.detection_threshold},
+          {"samples_moving", r.samples_moving},
+          {"samples_at_rest", r.samples_at_rest},
+          {"noise_std", {r.noise_std(0), r.noise_std(1), r.noise_std(2)}},
+          {"unit", "s"}};
+}
+
+double noncentrality_for_power(double critical_chi2, double power) {
+  if (!(critical_chi2 > 0.0) || !(power > 0.0 && power < 1.0)) {
+    throw std::invalid_argument("noncentrality_for_power: need critical_chi2 > 0 and power in (0, 1)");
+  }
+  auto power_at = [&](double lambda) {
+    if (lambda <= 0.0) return chi2_sf(critical_chi2, 1.0);
+    boost::math::non_central_chi_squared_distribution<double> dist(1.0, lambda);
+    return boost::math::cdf(boost::math::complement(dist, critical_chi2));
+  };
+  if (power_at(0.0) >= power) return 0.0;
+  double lo = 0.0, hi = 1.0;
+  while (power_at(hi) < power) hi *= 2.0;
+  for (int i = 0; i < 200 && hi - lo > 1e-10 * hi; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (power_at(mid) < power ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& options) {
+  validate(options);
+  AnalysisResult result;
+  result.local_gravity = options.local_gravity;
+  const std::vector<DwellGeometry> geoms = dwell_geometries(table);
+  const std::array<bool, 3> two_way = two_way_phases(geoms);
+
+  // Candidate family.
+  std::vector<Effect> candidates = options.candidates.empty() ? default_candidates(table) : options.candidates;
+  {
+    std::vector<Effect> kept;
+    for (const Effect& c : candidates) {
+      if (c.kind == EffectKind::TimingLag) continue;  // reported below
+      if (c.target < 0 || c.target > 2) {
+        throw std::invalid_argument("analysis: candidate " + c.name() + " has target index " +
+                                    std::to_string(c.target) + "; expected 0..2");
+      }
+      if (c.kind == EffectKind::Backlash && !two_way[c.target]) continue;
+      if (contains_term(options.base_effects, c) || contains_term(kept, c)) continue;
+      kept.push_back(c);
+    }
+    candidates = kept;
+  }
+  result.not_screened.push_back(
+      "timing_lag[all]: moves IMU stamps relative to the gimbal; dwell means taken after settling do "
+      "not show it, only raw streams (a bag, or simulate_recording) do: screen_timing_lag()");
+  for (int p = 0; p < 3; ++p) {
+    if (!two_way[p]) {
+      result.not_screened.push_back(std::string("backlash[") + phase_name(static_cast<Phase>(p)) +
+                                    "]: phase " + phase_name(static_cast<Phase>(p)) +
+                                    " was swept one way only, where backlash is identical to angle_offset[" +
+                                    phase_name(static_cast<Phase>(p)) + "] (b/2); a two-way sweep reveals it");
+    }
+  }
+  std::ostringstream gnote;
+  gnote << std::setprecision(8) << "local_gravity: a wrong g scales all three responsivities together and "
+        << "leaves no residual; an independent g (gravimeter, or normal_gravity(latitude, height)) is the "
+        << "only cure. This analysis used g = " << options.local_gravity << " m/s^2";
+  result.unobservable.push_back(gnote.str());
+
+  // 1. Base fit.
+  FitOptions fo;
+  fo.model = FitModel::Joint;
+  fo.local_gravity = options.local_gravity;
+  fo.effects = options.base_effects;
+  FitResult current = fit(table, fo);
+  result.before_fit = current;
+  result.before = compute_gap(table, current, options.harmonics, options.time_bins);
+  std::vector<Effect> model_terms = options.base_effects;
+
+  result.stop_reason = "max_effects reached";
+  for (int step = 0; step < options.max_effects + 1; ++step) {
+    std::vector<Effect> remaining;
+    for (const Effect& c : candidates) {
+      if (!contains_term(model_terms, c)) remaining.push_back(c);
+    }
+    Screening sc = screen(table, geoms, current, model_terms, remaining, options, step);
+    sc.step.gap = compute_gap(table, current, 0, 1).summary;
+    if (step == 0) {
+      for (const CandidateScore& cs : sc.step.candidates) {
+        if (!cs.identifiable) result.unidentifiable.push_back(cs);
+      }
+    }
+    if (step == options.max_effects) {
+      result.steps.push_back(sc.step);
+      break;
+    }
+    if (options.stop_when_consistent && sc.step.gap.consistent_with_noise) {
+      result.stop_reason = "gap consistent with noise";
+      result.steps.push_back(sc.step);
+      break;
+    }
+    // Significant candidates, strongest first.
+    std::vector<int> significant;
+    for (std::size_t k = 0; k < sc.step.candidates.size(); ++k) {
+      const CandidateScore& cs = sc.step.candidates[k];
+      if (cs.identifiable && cs.p_adjusted <= options.alpha) significant.push_back(static_cast<int>(k));
+    }
+    if (significant.empty()) {
+      bool any = std::any_of(sc.step.candidates.begin(), sc.step.candidates.end(),
+                             [](const CandidateScore& c) { return c.identifiable; });
+      result.stop_reason = any ? "no candidate significant at the family-wise level"
+                               : "no identifiable candidate left";
+      result.steps.push_back(sc.step);
+      break;
+    }
+    // Refit the strongest few and keep the one that lowers chi2 most.
+    int best = -1;
+    double best_delta = -std::numeric_limits<double>::infinity();
+    FitResult best_fit;
+    for (int i = 0; i < std::min<int>(options.refit_top, static_cast<int>(significant.size())); ++i) {
+      CandidateScore& cs = sc.step.candidates[significant[i]];
+      FitOptions o = fo;
+      o.effects = model_terms;
+      for (Effect& t : o.effects) {
+        for (const Effect& f : current.effects) {
+          if (same_term(t, f)) t.value = f.value;
+        }
+      }
+      o.effects.push_back(cs.effect);  // one-step estimate as the starting value
+      try {
+        FitResult f = fit(table, o);
+        if (!std::isfinite(f.chi2)) continue;
+        cs.refit = true;
+        cs.delta_chi2 = current.chi2 - f.chi2;
+        if (cs.delta_chi2 > best_delta) {
+          best_delta = cs.delta_chi2;
+          best = significant[i];
+          best_fit = f;
+        }
+      } catch (const std::exception&) {
+        // A refit that fails is not a candidate for naming at this step.
+      }
+    }
+    if (best < 0) {
+      result.stop_reason = "refits of the significant candidates failed";
+      result.steps.push_back(sc.step);
+      break;
+    }
+    const CandidateScore& chosen = sc.step.candidates[best];
+    sc.step.chosen = chosen.effect.label();
+
+    NamedEffect named;
+    named.effect = chosen.effect;
+    named.p_value = chosen.p_adjusted;
+    named.p_raw = chosen.p_raw;
+    named.score_chi2 = chosen.score_chi2;
+    named.delta_chi2 = chosen.delta_chi2;
+    named.step = step + 1;
+
+    // Ambiguity: candidates whose score direction nearly coincides with the chosen one.
+    const int row = sc.identifiable_index[best];
+    Ambiguity amb;
+    amb.named = chosen.effect.label();
+    amb.candidates.push_back(chosen.effect.label());
+    for (std::size_t k = 0; k < sc.step.candidates.size(); ++k) {
+      const int other = sc.identifiable_index[k];
+      if (other < 0 || other == row) continue;
+      const double corr = ambiguity_threshold_corr(sc, row, other);
+      if (corr > named.closest_correlation) {
+        named.closest_correlation = corr;
+        named.closest_alternative = sc.step.candidates[k].effect.label();
+      }
+      if (corr > options.ambiguity_correlation) {
+        amb.candidates.push_back(sc.step.candidates[k].effect.label());
+        if (corr > amb.correlation) {
+          amb.correlation = corr;
+          amb.separating_experiment = separating_experiment(chosen.effect, sc.step.candidates[k].effect);
+        }
+      }
+    }
+    result.effects.push_back(named);
+    if (amb.candidates.size() > 1) result.ambiguous.push_back(amb);
+    if (chosen.effect.kind == EffectKind::AngleOffset && !two_way[chosen.effect.target]) {
+      Ambiguity bl;
+      bl.named = chosen.effect.label();
+      Effect b{EffectKind::Backlash, chosen.effect.target, 0.0};
+      bl.candidates = {chosen.effect.label(), b.label()};
+      bl.correlation = 1.0;
+      bl.separating_experiment = separating_experiment(chosen.effect, b);
+      result.ambiguous.push_back(bl);
+    }
+
+    Effect added = chosen.effect;
+    for (const Effect& f : best_fit.effects) {
+      if (same_term(f, added)) added.value = f.value;
+    }
+    model_terms.push_back(added);
+    current = best_fit;
+    result.steps.push_back(sc.step);
+  }
+
+  result.after_fit = current;
+  result.after = compute_gap(table, current, options.harmonics, options.time_bins);
+  for (NamedEffect& ne : result.effects) {
+    for (std::size_t i = 0; i < current.effects.size(); ++i) {
+      if (same_term(current.effects[i], ne.effect)) {
+        ne.effect.value = current.effects[i].value;
+        ne.std = i < current.effects_std.size() ? current.effects_std[i] : 0.0;
+      }
+    }
+  }
+  return result;
+}
+
+namespace {
+
+nlohmann::json gap_summary_json(const GapSummary& g) {
+  return {{"reduced_chi2", g.reduced_chi2},
+          {"rms", g.rms},
+          {"chi2", g.chi2},
+          {"dof", g.dof},
+          {"p_value", g.p_value},
+          {"band99", {g.band99_low, g.band99_high}},
+          {"consistent_with_noise", g.consistent_with_noise}};
+}
+
+nlohmann::json gap_json(const Gap& gap) {
+  nlohmann::json j = gap_summary_json(gap.summary);
+  nlohmann::json cells = nlohmann::json::array();
+  for (const CellGap& c : gap.cells) {
+    cells.push_back({{"phase", phase_name(static_cast<Phase>(c.phase))},
+                     {"accelerometer", accelerometer_name(c.accelerometer)},
+                     {"n", c.n},
+                     {"chi2", c.chi2},
+                     {"rms", c.rms},
+                     {"harmonic_power", c.harmonic_power}});
+  }
+  j["by_phase_accelerometer"] = cells;
+  nlohmann::json bins = nlohmann::json::array();
+  for (const TimeBinGap& b : gap.time_bins) {
+    bins.push_back({{"t_begin_s", b.t_begin_s}, {"t_end_s", b.t_end_s}, {"n", b.n}, {"chi2", b.chi2}, {"rms", b.rms}});
+  }
+  j["by_time"] = bins;
+  j["trend_z"] = {{"u", gap.trend_z[0]}, {"v", gap.trend_z[1]}, {"w", gap.trend_z[2]}};
+  return j;
+}
+
+nlohmann::json candidate_json(const CandidateScore& c) {
+  nlohmann::json j = {{"name", c.effect.name()},
+                      {"target", c.effect.target_name()},
+                      {"identifiable", c.identifiable},
+                      {"information_ratio", c.information_ratio}};
+  if (c.identifiable) {
+    j["score_chi2"] = c.score_chi2;
+    j["estimate"] = c.effect.value;
+    j["estimate_std"] = c.estimate_std;
+    j["p_raw"] = c.p_raw;
+    j["p_holm"] = c.p_holm;
+    j["p_value"] = c.p_adjusted;
+    j["detection_threshold"] = c.detection_threshold;
+    if (c.refit) j["delta_chi2"] = c.delta_chi2;
+  }
+  j["unit"] = effect_info(c.effect.kind).unit;
+  return j;
+}
+
+}  // namespace
+
+nlohmann::json analysis_to_json(const AnalysisResult& r) {
+  nlohmann::json j;
+  nlohmann::json effects = nlohmann::json::array();
+  for (const NamedEffect& e : r.effects) {
+    effects.push_back({{"name", e.effect.name()},
+                       {"target", e.effect.target_name()},
+                       {"value", e.effect.value},
+                       {"std", e.std},
+                       {"p_value", e.p_value},
+                       {"unit", effect_info(e.effect.kind).unit},
+                       {"p_raw", e.p_raw},
+                       {"score_chi2", e.score_chi2},
+                       {"delta_chi2", e.delta_chi2},
+                       {"step", e.step},
+                       {"closest_alternative", e.closest_alternative},
+                       {"closest_correlation", e.closest_correlation}});
+  }
+  j["effects"] = effects;
+  nlohmann::json amb = nlohmann::json::array();
+  for (const Ambiguity& a : r.ambiguous) {
+    amb.push_back({{"named", a.named},
+                   {"candidates", a.candidates},
+                   {"correlation", a.correlation},
+                   {"separating_experiment", a.separating_experiment}});
+  }
+  j["ambiguous"] = amb;
+  j["gap"] = {{"before", gap_json(r.before)}, {"after", gap_json(r.after)}};
+  j["model_before"] = r.before_fit.model_label();
+  j["model_after"] = r.after_fit.model_label();
+  j["local_gravity"] = r.local_gravity;
+  j["stop_reason"] = r.stop_reason;
+  nlohmann::json steps = nlohmann::json::array();
+  for (const ScreeningStep& s : r.steps) {
+    nlohmann::json cands = nlohmann::json::array();
+    for (const CandidateScore& c : s.candidates) cands.push_back(candidate_json(c));
+    steps.push_back({{"model", s.model},
+                     {"reduced_chi2", s.gap.reduced_chi2},
+                     {"critical_chi2", s.critical_chi2},
+                     {"chosen", s.chosen},
+                     {"candidates", cands}});
+  }
+  j["screening"] = steps;
+  nlohmann::json unid = nlohmann::json::array();
+  for (const CandidateScore& c : r.unidentifiable) {
+    unid.push_back({{"name", c.effect.name()},
+                    {"target", c.effect.target_name()},
+                    {"information_ratio", c.information_ratio},
+                    {"reason", "absorbed by the base model parameters (S, O, fitted effects)"}});
+  }
+  j["unidentifiable"] = unid;
+  j["not_screened"] = r.not_screened;
+  j["unobservable"] = r.unobservable;
+  return j;
+}
+
+void write_analysis_report(std::ostream& out, const AnalysisResult& r) {
+  const std::ios::fmtflags flags = out.flags();
+  const std::streamsize precision = out.precision();
+  out << std::setprecision(4);
+  auto gap_line = [&](const char* when, const std::string& model, const GapSummary& g) {
+    out << "  " << when << " (" << model << "): reduced chi2 " << g.reduced_chi2 << " (99 % band "
+        << g.band99_low << ".." << g.band99_high << ", p = " << g.p_value << "), RMS " << g.rms * 1e3
+        << " mm/s^2" << (g.consistent_with_noise ? "" : "  <- not consistent with noise") << "\n";
+  };
+  out << "discrepancy analysis (g = " << std::setprecision(8) << r.local_gravity << std::setprecision(4)
+      << " m/s^2)\n";
+  gap_line("gap before", r.before_fit.model_label(), r.before.summary);
+  gap_line("gap after ", r.after_fit.model_label(), r.after.summary);
+  // Where the gap was: the three worst phase x accelerometer cells and their strongest harmonic.
+  std::vector<CellGap> cells = r.before.cells;
+  std::sort(cells.begin(), cells.end(), [](const CellGap& a, const CellGap& b) { return a.chi2 > b.chi2; });
+  out << "  worst cells before (chi2/n, strongest harmonic of the angle):";
+  for (std::size_t i = 0; i < std::min<std::size_t>(3, cells.size()); ++i) {
+    const CellGap& c = cells[i];
+    std::size_t k = 0;
+    for (std::size_t h = 1; h < c.harmonic_power.size(); ++h) {
+      if (c.harmonic_power[h] > c.harmonic_power[k]) k = h;
+    }
+    out << "  " << phase_name(static_cast<Phase>(c.phase)) << "/" << accelerometer_name(c.accelerometer) << " "
+        << (c.n > 0 ? c.chi2 / c.n : 0.0);
+    if (!c.harmonic_power.empty()) out << " (k=" << k << ")";
+  }
+  out << "\n  trend z vs time before (u v w): " << r.before.trend_z[0] << " " << r.before.trend_z[1] << " "
+      << r.before.trend_z[2] << "\n";
+  if (r.effects.empty()) out << "  named effects: none (" << r.stop_reason << ")\n";
+  for (const NamedEffect& e : r.effects) {
+    out << "  named: " << e.effect.label() << " = " << e.effect.value << " +- " << e.std << " "
+        << effect_info(e.effect.kind).unit << "  (p = " << e.p_value << ", delta chi2 = " << e.delta_chi2
+        << ", step " << e.step << ")\n";
+  }
+  if (!r.effects.empty()) out << "  stopped: " << r.stop_reason << "\n";
+  for (const Ambiguity& a : r.ambiguous) {
+    out << "  ambiguous:";
+    for (const std::string& c : a.candidates) out << " " << c;
+    out << " (|corr| " << a.correlation << "): " << a.separating_experiment << "\n";
+  }
+  for (const CandidateScore& c : r.unidentifiable) {
+    out << "  unidentifiable: " << c.effect.label() << " (absorbed by the base model, information ratio "
+        << c.information_ratio << ")\n";
+  }
+  for (const std::string& n : r.not_screened) out << "  not screened: " << n << "\n";
+  for (const std::string& n : r.unobservable) out << "  unobservable: " << n << "\n";
+  out.flags(flags);
+  out.precision(precision);
+}
+
+void write_residuals_csv(std::ostream& out, const PositionTable& table, const FitResult& before_fit,
+                         const FitResult& after_fit) {
+  const std::vector<DwellGeometry> geoms = dwell_geometries(table);
+  const std::vector<Eigen::Vector3d> se = weights_for(table, before_fit);
+  const Device before = device_from_fit(before_fit);
+  const Device after = device_from_fit(after_fit);
+  out << "phase,step,angle_rad,time_s,approach,accelerometer,measured,sigma,"
+         "model_before,residual_before,z_before,model_after,residual_after,z_after\n";
+  out << std::setprecision(12);
+  for (std::size_t r = 0; r < table.rows.size(); ++r) {
+    const DwellRecord& row = table.rows[r];
+    const Eigen::Vector3d mb = predict_outputs(before, geoms[r], before_fit.local_gravity);
+    const Eigen::Vector3d ma = predict_outputs(after, geoms[r], after_fit.local_gravity);
+    for (int s = 0; s < 3; ++s) {
+      const double rb = row.mean(s) - mb(s);
+      const double ra = row.mean(s) - ma(s);
+      out << phase_name(row.phase) << ',' << row.step << ',' << row.angle_rad << ',' << geoms[r].time_s << ','
+          << geoms[r].approach << ',' << accelerometer_name(s) << ',' << row.mean(s) << ',' << se[r](s) << ','
+          << mb(s) << ',' << rb << ',' << rb / se[r](s) << ',' << ma(s) << ',' << ra << ',' << ra / se[r](s)
+          << '\n';
+    }
+  }
+}
+
+void write_residuals_csv(const std::string& path, const PositionTable& table, const FitResult& before_fit,
+                         const FitResult& after_fit) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error("write_residuals_csv: cannot open '" + path + "' for writing");
+  write_residuals_csv(out, table, before_fit, after_fit);
+  out.flush();
+  if (!out) throw std::runtime_error("write_residuals_csv: write to '" + path + "' failed");
+}
+
+}  // namespace core
+}  // namespace accel_intrinsics
