@@ -1,0 +1,120 @@
+// Reads a recorded run from a bag with the rosbag C++ API (no playback) and feeds the gimbal
+// commands and IMU samples, in bag (receive) order, to core::DwellAssembler: the same dwell
+// assignment the calibration node runs online, so offline and online agree to the last digit.
+#pragma once
+
+#include <rosbag/bag.h>
+
+#include <cstdint>
+#include <iosfwd>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/core/dwell_assembler.h"
+#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/ros/names.h"
+
+namespace accel_intrinsics {
+
+// Every failure to read a usable run: missing file, corrupt or truncated bag, topic not in the
+// bag (the message names it and lists the bag's topics), wrong message type. One line of text.
+class BagInputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct BagInputOptions {
+  // Topic names as requested: "imu/data_raw" matches "/imu/data_raw" and a single namespaced
+  // "/<ns>/imu/data_raw"; a leading '/' asks for that exact topic. See resolve_topic().
+  std::string imu_topic = names::kImuTopic;
+  std::string command_topic = names::kGimbalCommandTopic;
+  // Dwell assembly. The reorder window defaults to 10 s, wider than any shipped configuration
+  // (node 0.25 s, simulated stand 5 s): in a bag it costs only memory (window x rate events) and
+  // a little time, and it keeps messages that a recorder received late (a sim-time recording
+  // stretches transport delays). The result equals the node's whenever neither dropped a message
+  // as late (counters.dropped_late; offline_fit warns when it is not 0).
+  core::AssemblerOptions assembler = default_assembler_options();
+  static core::AssemblerOptions default_assembler_options() {
+    core::AssemblerOptions o;
+    o.reorder_window_s = 10.0;
+    return o;
+  }
+  // Read uncompressed, unencrypted, indexed 2.0 bags (rosbag record's default) straight from a
+  // memory map instead of through rosbag::Bag and rosbag::View: several times faster, the same
+  // messages (in file order = write order). Any other bag, or one whose records look odd, goes
+  // through rosbag. false: always rosbag (tests compare the two).
+  bool allow_chunk_scan = true;
+  // Progress on `progress_stream` (stderr by default) once per `progress_interval_s` of wall time
+  // when reading takes longer than that; nullptr for none.
+  std::ostream* progress_stream = nullptr;
+  double progress_interval_s = 1.0;
+  std::string progress_label = "reading bag";
+};
+
+// A topic of the bag with its message type, e.g. {"/imu/data_raw", "sensor_msgs/Imu"}.
+struct BagTopic {
+  std::string name;
+  std::string datatype;
+  std::uint64_t messages = 0;
+};
+
+struct BagInputStats {
+  std::string path;
+  std::string imu_topic;      // as resolved in the bag
+  std::string command_topic;  // as resolved in the bag
+  std::uint64_t imu_messages = 0;
+  std::uint64_t command_messages = 0;
+  // Rejected as the calibration node rejects them: phase or state outside the constants, angle
+  // not finite, steps 0 or step >= steps, zero stamp.
+  std::uint64_t invalid_commands = 0;
+  double bag_start_s = 0.0;            // bag (receive) time of the first and last message read
+  double bag_end_s = 0.0;
+  double read_wall_s = 0.0;            // wall time spent reading and assembling
+  bool done_seen = false;              // the controller's DONE was in the bag
+  // The dwell that was still open when the bag ended (no DONE): it is not in the table.
+  bool open_dwell = false;
+  core::Phase open_dwell_phase = core::Phase::X;
+  std::uint32_t open_dwell_step = 0;
+  std::uint64_t open_dwell_samples = 0;
+  // Positions per phase the controller announced (GimbalCommand::steps; 0 = none seen).
+  std::uint32_t steps_announced[3] = {0, 0, 0};
+  core::AssemblerCounters counters;
+  std::string reader;  // "chunk scan" or "rosbag::View"
+};
+
+struct BagRun {
+  core::PositionTable table;
+  BagInputStats stats;
+};
+
+// The bag's topics, sorted by name.
+std::vector<BagTopic> list_topics(rosbag::Bag& bag);
+// "/a (type, N msgs), /b (...)" for messages.
+std::string describe_topics(const std::vector<BagTopic>& topics);
+
+// Finds the bag topic meant by `requested`. Rules, in order:
+//   1. exact match, ignoring one leading '/' on either side;
+//   2. unless `requested` starts with '/': topics ending in "/<requested>" (namespaced); one
+//      candidate wins, several are narrowed to the one in `preferred_namespace` (e.g. the
+//      namespace of the other topic, "/stand1/"), else the lookup is ambiguous.
+// Throws BagInputError naming the topic and listing the bag's topics when none or several match,
+// or when the match has a type other than `expected_datatype` (empty = any).
+std::string resolve_topic(const std::string& requested, const std::vector<BagTopic>& topics,
+                          const std::string& expected_datatype,
+                          const std::string& preferred_namespace = "");
+
+// The namespace prefix of a resolved topic given the requested relative name:
+// ("/stand1/imu/data_raw", "imu/data_raw") -> "/stand1/"; "/" when not namespaced.
+std::string topic_namespace(const std::string& resolved, const std::string& requested);
+
+// Opens `path`, resolves both topics and feeds every message of them, in bag order, to
+// `assembler`, then flushes it. The assembler's dwell callback and table are the caller's.
+// Throws BagInputError.
+BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
+                       core::DwellAssembler& assembler);
+
+// feed_bag into a fresh assembler with options.assembler; returns its table and the statistics.
+BagRun read_bag(const std::string& path, const BagInputOptions& options = {});
+
+}  // namespace accel_intrinsics

@@ -1,0 +1,75 @@
+// replay_equals_offline.test: a run of the simulated stand recorded with record.launch;
+// offline_fit on that bag equals the calibration node's online result to the last digit.
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+#include <std_srvs/Trigger.h>
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "offline_compare.h"
+
+namespace oc = offline_compare;
+
+TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
+  ros::NodeHandle pnh("~");
+  std::string bag, recorder = "/recorder", online_dir;
+  double timeout_s = 200.0;
+  ASSERT_TRUE(pnh.getParam("bag", bag));
+  pnh.getParam("recorder", recorder);
+  pnh.getParam("online_dir", online_dir);
+  pnh.getParam("timeout_s", timeout_s);
+  std::remove(bag.c_str());
+  std::remove((bag + ".active").c_str());
+
+  // The recorder and the calibration node must hear the run from its first command.
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(60.0);
+  while (ros::WallTime::now() < deadline &&
+         !(oc::subscribed(recorder, {"/gimbal/command", "/imu/data_raw"}) &&
+           oc::subscribed("/calibration", {"/gimbal/command", "/imu/data_raw"}) &&
+           ros::service::exists("/gimbal_controller/start", false))) {
+    ros::WallDuration(0.2).sleep();
+  }
+  ASSERT_TRUE(oc::subscribed(recorder, {"/gimbal/command", "/imu/data_raw"})) << "recorder not subscribed";
+  ros::WallDuration(0.5).sleep();
+
+  std_srvs::Trigger start;
+  ASSERT_TRUE(ros::service::call("/gimbal_controller/start", start));
+  ASSERT_TRUE(start.response.success) << start.response.message;
+
+  accel_intrinsics::IntrinsicResult online;
+  std::string message;
+  ASSERT_TRUE(oc::wait_for_result("/calibration/get_intrinsics", timeout_s, &online, &message)) << message;
+  // Keep recording a little past the result (the bag then holds the latched result too).
+  ros::WallDuration(1.0).sleep();
+  ASSERT_TRUE(oc::shutdown_node(recorder));
+  const ros::WallTime closed_by = ros::WallTime::now() + ros::WallDuration(30.0);
+  while (ros::WallTime::now() < closed_by && (!oc::file_exists(bag) || oc::file_exists(bag + ".active"))) {
+    ros::WallDuration(0.2).sleep();
+  }
+  ASSERT_TRUE(oc::file_exists(bag)) << "the recorder did not close " << bag;
+
+  const std::string json_path = bag + ".json";
+  const std::string csv_path = bag + ".csv";
+  const oc::ToolRun r = oc::run_offline_fit({"--bag", bag, "--json", json_path, "--csv-out", csv_path}, bag + ".err");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(oc::read_file(json_path));
+  EXPECT_EQ(j["complete"], true) << j["warnings"].dump();
+  EXPECT_EQ(j["input"]["dropped_late"], 0);
+  EXPECT_EQ(j["positions"]["x"], 6);
+  oc::expect_equal(online, j);
+
+  // The dwells themselves: the node's checkpoint file and offline_fit's table, byte for byte.
+  if (!online_dir.empty()) {
+    const std::string online_csv = oc::read_file(online_dir + "/position_table.csv");
+    ASSERT_FALSE(online_csv.empty());
+    EXPECT_EQ(online_csv, oc::read_file(csv_path));
+  }
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "replay_equals_offline_test");
+  ros::NodeHandle nh;
+  return RUN_ALL_TESTS();
+}

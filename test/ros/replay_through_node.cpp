@@ -1,0 +1,103 @@
+// replay_through_node.test: replay.launch against a bag written here from simulate_recording;
+// the calibration node under `rosbag play --clock` gives offline_fit's result to the last digit.
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+#include <rosbag/bag.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/ros/conversions.h"
+#include "offline_compare.h"
+
+namespace ai = accel_intrinsics;
+namespace core = accel_intrinsics::core;
+namespace oc = offline_compare;
+
+namespace {
+
+// A run as the stand would record it: stamps from t = 1000 s, bag time = stamp, and 3 s of
+// samples after DONE (a recorder keeps running until the result is out).
+void write_simulated_bag(const std::string& path) {
+  core::SimulationOptions sim;
+  sim.truth.S << 1.015, 0.012, -0.004, 0.002, 0.985, 0.018, -0.008, 0.011, 1.003;
+  sim.truth.O = Eigen::Vector3d(0.04, -0.02, 0.09);
+  sim.protocol.steps_per_phase = 6;
+  sim.protocol.dwell_s = 1.0;
+  sim.protocol.move_s = 0.5;
+  sim.protocol.phase_change_s = 2.0;
+  sim.seed = 11;
+  core::Recording rec = core::simulate_recording(sim);
+  const double last = rec.samples.back().stamp_s;
+  for (double t = last + 0.01; t < last + 3.0; t += 0.01) {
+    core::ImuSample s = rec.samples.back();
+    s.stamp_s = t;
+    rec.samples.push_back(s);
+  }
+  rosbag::Bag bag;
+  bag.open(path, rosbag::bagmode::Write);
+  std::size_t c = 0;
+  for (const core::ImuSample& s : rec.samples) {
+    while (c < rec.commands.size() && rec.commands[c].stamp_s <= s.stamp_s) {
+      core::GimbalEvent e = rec.commands[c++];
+      e.stamp_s += 1000.0;
+      bag.write("/gimbal/command", ros::Time(e.stamp_s), ai::to_msg(e));
+    }
+    core::ImuSample shifted = s;
+    shifted.stamp_s += 1000.0;
+    bag.write("/imu/data_raw", ros::Time(shifted.stamp_s), ai::to_msg(shifted, "dut"));
+  }
+  bag.close();
+}
+
+}  // namespace
+
+TEST(ReplayThroughNode, ReplayLaunchGivesOfflineResult) {
+  ros::NodeHandle pnh("~");
+  std::string bag;
+  double rate = 4.0, timeout_s = 150.0;
+  ASSERT_TRUE(pnh.getParam("bag", bag));
+  pnh.getParam("rate", rate);
+  pnh.getParam("timeout_s", timeout_s);
+  write_simulated_bag(bag);
+
+  const oc::ToolRun r = oc::run_offline_fit({"--bag", bag, "--json", bag + ".json"}, bag + ".err");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(oc::read_file(bag + ".json"));
+  ASSERT_EQ(j["complete"], true) << j["warnings"].dump();
+
+  // roslaunch replay.launch on this test's master, in its own process group.
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::setpgid(0, 0);
+    const std::string bag_arg = "bag:=" + bag;
+    const std::string rate_arg = "rate:=" + std::to_string(rate);
+    ::execlp("roslaunch", "roslaunch", "accel_intrinsics", "replay.launch", bag_arg.c_str(), rate_arg.c_str(),
+             "output:=log", static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  accel_intrinsics::IntrinsicResult online;
+  std::string message;
+  const bool ok = oc::wait_for_result("/calibration/get_intrinsics", timeout_s, &online, &message);
+  ::kill(-child, SIGINT);
+  int status = 0;
+  for (int i = 0; i < 100 && ::waitpid(child, &status, WNOHANG) == 0; ++i) ros::WallDuration(0.1).sleep();
+  if (::waitpid(child, &status, WNOHANG) == 0) {
+    ::kill(-child, SIGKILL);
+    ::waitpid(child, &status, 0);
+  }
+  ASSERT_TRUE(ok) << "no result from the replay: " << message;
+  oc::expect_equal(online, j);
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "replay_through_node_test");
+  ros::NodeHandle nh;
+  return RUN_ALL_TESTS();
+}
