@@ -15,3 +15,16 @@ source_workspace() {
   source "$ACCEL_WS/devel/setup.bash"
   set -u
 }
+
+# Runs tools/build.sh with its output in $ACCEL_WS/build.log; on failure shows the errors.
+build_quietly() {
+  mkdir -p "$ACCEL_WS"
+  echo "[build] building in $ACCEL_WS (log: $ACCEL_WS/build.log) ..."
+  if ! bash "$REPO_DIR/tools/build.sh" "$@" > "$ACCEL_WS/build.log" 2>&1; then
+    grep -E "error|Error" "$ACCEL_WS/build.log" | head -n 30 >&2
+    tail -n 20 "$ACCEL_WS/build.log" >&2
+    echo "[build] FAILED (full log: $ACCEL_WS/build.log)" >&2
+    return 1
+  fi
+  echo "[build] done"
+}

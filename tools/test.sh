@@ -3,7 +3,7 @@
 # Ends with one line "N passed, N failed".
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 bash "$REPO_DIR/tools/install_deps.sh"
-bash "$REPO_DIR/tools/build.sh" all tests
+build_quietly all tests
 cd "$ACCEL_WS"
 source_workspace
 rm -rf "$ACCEL_WS/build/test_results/accel_intrinsics"
