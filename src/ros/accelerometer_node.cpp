@@ -48,6 +48,14 @@ AccelerometerOptions AccelerometerOptions::load(const ros::NodeHandle& pnh) {
     throw ParamError("parameter " + pnh.getNamespace() + "/" + e.what());
   }
   require(o.poll_hz * 10.0 >= 1.0, pnh, "poll_hz", "too low");
+  read_param(pnh, "fault/stall_after_s", &o.stall_after_s);
+  read_param(pnh, "fault/stall_for_s", &o.stall_for_s);
+  require(std::isfinite(o.stall_after_s) && std::isfinite(o.stall_for_s) && o.stall_for_s > 0.0,
+          pnh, "fault/stall_for_s", "must be finite and > 0 s");
+  read_param(pnh, "fault/decimate_after_s", &o.decimate_after_s);
+  read_param(pnh, "fault/decimate", &o.decimate);
+  require(std::isfinite(o.decimate_after_s), pnh, "fault/decimate_after_s", "must be finite");
+  require(o.decimate >= 1, pnh, "fault/decimate", "must be >= 1");
   return o;
 }
 
@@ -99,7 +107,16 @@ void AccelerometerNode::on_tf(const tf2_msgs::TFMessage::ConstPtr& msg) {
 void AccelerometerNode::on_command(const GimbalCommand::ConstPtr& msg) {
   if (!have_origin_ && simulated_ && !msg->header.stamp.isZero()) {
     simulated_->set_time_origin(msg->header.stamp.toSec());
+    time_origin_s_ = msg->header.stamp.toSec();
     have_origin_ = true;
+    if (options_.stall_after_s >= 0.0) {
+      ROS_WARN("accelerometer: fault injection: no samples from %.3f s for %.3f s",
+               time_origin_s_ + options_.stall_after_s, options_.stall_for_s);
+    }
+    if (options_.decimate_after_s >= 0.0 && options_.decimate > 1) {
+      ROS_WARN("accelerometer: fault injection: one sample in %d from %.3f s", options_.decimate,
+               time_origin_s_ + options_.decimate_after_s);
+    }
   }
 }
 
@@ -123,10 +140,26 @@ void AccelerometerNode::poll(const ros::Time& now) {
   batch_.clear();
   source_->poll(now.toSec(), &batch_);
   const double variance = source_->variance_per_axis();
+  const bool faults = have_origin_ && (options_.stall_after_s >= 0.0 ||
+                                       (options_.decimate_after_s >= 0.0 && options_.decimate > 1));
   for (const core::ImuSample& s : batch_) {
+    if (faults) {
+      const double t = s.stamp_s - time_origin_s_;
+      if (options_.stall_after_s >= 0.0 && t >= options_.stall_after_s &&
+          t < options_.stall_after_s + options_.stall_for_s) {
+        ++fault_dropped_;
+        continue;
+      }
+      if (options_.decimate_after_s >= 0.0 && options_.decimate > 1 &&
+          t >= options_.decimate_after_s &&
+          (decimate_counter_++ % static_cast<std::uint64_t>(options_.decimate)) != 0) {
+        ++fault_dropped_;
+        continue;
+      }
+    }
     imu_pub_.publish(to_msg(s, options_.frame_id, variance));
+    ++published_;
   }
-  published_ += batch_.size();
 }
 
 void AccelerometerNode::on_timer(const ros::TimerEvent&) {

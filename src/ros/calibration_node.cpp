@@ -3,11 +3,13 @@
 
 #include <diagnostic_msgs/DiagnosticStatus.h>
 #include <diagnostic_msgs/KeyValue.h>
+#include <std_msgs/String.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <iterator>
 #include <sstream>
 #include <stdexcept>
 
@@ -30,6 +32,25 @@ diagnostic_msgs::KeyValue kv(const std::string& key, const std::string& value) {
 
 const char* const kAccel[3] = {"u", "v", "w"};
 const char* const kPhase[3] = {"x", "y", "z"};
+
+std::string position_label(core::Phase phase, std::uint32_t step, int approach) {
+  std::ostringstream s;
+  s << "phase " << core::phase_name(phase) << " step " << step;
+  if (approach < 0) s << " (return sweep)";
+  return s.str();
+}
+
+// "stamp=123.456" in a gimbal controller reply: the stamp of the MOVING (or DONE) it published.
+bool parse_stamp(const std::string& message, double* stamp_s) {
+  const std::size_t at = message.rfind("stamp=");
+  if (at == std::string::npos) return false;
+  try {
+    *stamp_s = std::stod(message.substr(at + 6));
+  } catch (const std::exception&) {
+    return false;
+  }
+  return std::isfinite(*stamp_s);
+}
 
 }  // namespace
 
@@ -90,7 +111,47 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
   read_param(pnh, "immediate_imu", &o.immediate_imu);
   read_param(pnh, "file_prefix", &o.file_prefix);
   require(o.file_prefix.find('/') == std::string::npos, pnh, "file_prefix", "must not contain '/'");
+  // Analysis.
+  read_param(pnh, "analyze", &o.analyze);
+  o.analysis.local_gravity = o.fit.local_gravity;
+  read_param(pnh, "analysis/alpha", &o.analysis.alpha);
+  read_param(pnh, "analysis/max_effects", &o.analysis.max_effects);
+  read_param(pnh, "analysis/monte_carlo_draws", &o.analysis.monte_carlo_draws);
+  int analysis_seed = static_cast<int>(o.analysis.seed % 2147483647ULL);
+  if (read_param(pnh, "analysis/seed", &analysis_seed)) {
+    require(analysis_seed >= 0, pnh, "analysis/seed", "must be >= 0");
+    o.analysis.seed = static_cast<std::uint64_t>(analysis_seed);
+  }
+  try {
+    core::validate(o.analysis);
+  } catch (const std::invalid_argument& e) {
+    throw ParamError("parameter " + param_name(pnh, "analysis") + ": " + e.what());
+  }
+  std::string certificate = "base";
+  read_param(pnh, "certificate_model", &certificate);
+  require(certificate == "base" || certificate == "refit", pnh, "certificate_model",
+          "must be 'base' or 'refit' (got '" + certificate + "')");
+  o.certificate_refit = certificate == "refit";
+
+  // Resume and watchdogs.
+  read_param(pnh, "resume", &o.resume);
+  read_param(pnh, "imu_timeout_s", &o.imu_timeout_s);
+  require(std::isfinite(o.imu_timeout_s) && o.imu_timeout_s >= 0.0, pnh, "imu_timeout_s",
+          "must be finite and >= 0 s (0 = off)");
+  read_param(pnh, "min_samples_per_dwell", &o.min_samples_per_dwell);
+  std::string on_fault = "abort";
+  read_param(pnh, "on_fault", &on_fault);
+  require(on_fault == "abort" || on_fault == "retry", pnh, "on_fault",
+          "must be 'abort' or 'retry' (got '" + on_fault + "')");
+  o.retry_on_fault = on_fault == "retry";
+  read_param(pnh, "max_retries", &o.max_retries);
+  require(o.max_retries <= 100, pnh, "max_retries", "must be in [0, 100]");
+  read_param(pnh, "gimbal_controller", &o.gimbal_controller);
+  require(!o.gimbal_controller.empty(), pnh, "gimbal_controller", "must not be empty");
+
   read_param(pnh, "output_dir", &o.output_dir);
+  require(!(o.resume && o.output_dir.empty()), pnh, "resume",
+          "needs output_dir (the checkpoint lives there)");
   if (!o.output_dir.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(o.output_dir, ec);
@@ -104,24 +165,34 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
                                  const CalibrationOptions& options)
     : nh_(nh), pnh_(pnh), options_(options), assembler_(options.assembler) {
   assembler_.set_dwell_callback([this](const core::DwellRecord& row) { on_dwell(row); });
+  if (options_.resume) load_checkpoint();
   result_pub_ = nh_.advertise<IntrinsicResult>(names::kResultTopic, 1, true);
   status_pub_ =
       nh_.advertise<diagnostic_msgs::DiagnosticStatus>(names::kCalibrationStatusTopic, 1, true);
+  analysis_pub_ = nh_.advertise<std_msgs::String>(names::kAnalysisTopic, 1, true);
   get_srv_ =
       nh_.advertiseService(names::kGetIntrinsicsService, &CalibrationNode::on_get_intrinsics, this);
   reset_srv_ = nh_.advertiseService(names::kResetService, &CalibrationNode::on_reset, this);
+  analyze_srv_ = nh_.advertiseService(names::kAnalyzeService, &CalibrationNode::on_analyze, this);
+  updater_.reset(new diagnostic_updater::Updater(nh_, pnh_));
+  updater_->setHardwareID("accel_intrinsics " + nh_.getNamespace());
+  updater_->add("imu", this, &CalibrationNode::diagnose_imu);
+  updater_->add("run", this, &CalibrationNode::diagnose_run);
   command_sub_ = nh_.subscribe(names::kGimbalCommandTopic, 1000, &CalibrationNode::on_command, this,
                                ros::TransportHints().tcpNoDelay());
   ros::SubscribeOptions imu_options = ros::SubscribeOptions::create<sensor_msgs::Imu>(
       names::kImuTopic, 20000, boost::bind(&CalibrationNode::on_imu, this, boost::placeholders::_1),
       ros::VoidConstPtr(), options_.immediate_imu ? &immediate_queue_ : nullptr);
   imu_sub_ = nh_.subscribe(imu_options);
+  progress_sub_ = nh_.subscribe(names::kProgressTopic, 10, &CalibrationNode::on_progress, this);
   timer_ =
       nh_.createTimer(ros::Duration(options_.flush_period_s), &CalibrationNode::on_timer, this);
-  ROS_INFO("calibration: model %s, local_gravity %.6f m/s^2, reorder window %.3f s, output %s",
+  ROS_INFO("calibration: model %s, local_gravity %.6f m/s^2, reorder window %.3f s, output %s%s%s",
            core::model_name(options_.fit.model), options_.fit.local_gravity,
            options_.assembler.reorder_window_s,
-           options_.output_dir.empty() ? "(none)" : options_.output_dir.c_str());
+           options_.output_dir.empty() ? "(none)" : options_.output_dir.c_str(),
+           options_.analyze ? ", analysis after the fit" : "",
+           options_.resume ? ", resume from the checkpoint" : "");
 }
 
 CalibrationNode::~CalibrationNode() {
@@ -144,6 +215,34 @@ std::string CalibrationNode::yaml_path() const {
       .string();
 }
 
+std::string CalibrationNode::state_path() const {
+  if (options_.output_dir.empty()) return "";
+  return (std::filesystem::path(options_.output_dir) /
+          (options_.file_prefix + "calibration_state.yaml"))
+      .string();
+}
+
+std::string CalibrationNode::analysis_path() const {
+  if (options_.output_dir.empty()) return "";
+  return (std::filesystem::path(options_.output_dir) / (options_.file_prefix + "analysis.json"))
+      .string();
+}
+
+core::AssemblerCounters CalibrationNode::counters() const {
+  core::AssemblerCounters c = assembler_.counters();
+  const core::AssemblerCounters& b = counters_before_;
+  c.samples_used += b.samples_used;
+  c.dropped_outside_dwell += b.dropped_outside_dwell;
+  c.dropped_settle_discard += b.dropped_settle_discard;
+  c.dropped_non_finite += b.dropped_non_finite;
+  c.dropped_backwards += b.dropped_backwards;
+  c.dropped_late += b.dropped_late;
+  c.commands += b.commands;
+  c.commands_out_of_order += b.commands_out_of_order;
+  if (c.last_warning.empty()) c.last_warning = b.last_warning;
+  return c;
+}
+
 void CalibrationNode::handle_command(const GimbalCommand& msg) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   ++commands_received_;
@@ -160,11 +259,25 @@ void CalibrationNode::handle_command(const GimbalCommand& msg) {
     return;
   }
   const core::GimbalEvent event = to_core(msg);
-  const bool new_run = event.state == core::GimbalState::Moving && event.phase == core::Phase::X &&
-                       event.step == 0 &&
-                       (done_pending_ || assembler_.done() || has_result_ || !fit_error_.empty());
+  const bool run_start = event.state == core::GimbalState::Moving &&
+                         event.phase == core::Phase::X && event.step == 0;
+  if (resume_pending_) {
+    // First command after a restart from a checkpoint: a fresh run, or the one to continue.
+    if (run_start) {
+      resume_pending_ = false;
+      ROS_WARN("calibration: a new run starts; the checkpoint of %zu dwells is discarded",
+               table_.rows.size());
+      reset("a new run starts over the checkpoint");
+    } else {
+      begin_resume();
+    }
+  }
+  const bool new_run =
+      run_start && (done_pending_ || assembler_.done() || has_result_ || !fit_error_.empty() ||
+                    !fault_.empty()) &&
+      blackouts_.empty();
   if (new_run) {
-    if (done_pending_) {
+    if (done_pending_ && fault_.empty()) {
       // The previous run's DONE is still in the reorder window: finish it first.
       assembler_.flush();
       done_pending_ = false;
@@ -172,7 +285,32 @@ void CalibrationNode::handle_command(const GimbalCommand& msg) {
     }
     reset("a new run starts (MOVING to phase x step 0 after DONE)");
   }
+  if (!std::isfinite(table_.time_origin_s)) {
+    table_.time_origin_s = event.stamp_s;  // t0 of the drift term: the first command of the run
+    steps_seen_ = msg.steps;
+    write_state();
+  }
   steps_seen_ = msg.steps;
+  // Live view (arrival order) for the IMU watchdog, and the announced dwells (stamp order).
+  live_in_dwell_ = event.state == core::GimbalState::Settled;
+  if (live_in_dwell_) live_dwell_ = msg;
+  if (!announced_.empty() && !std::isfinite(announced_.back().end_s)) {
+    announced_.back().end_s = event.stamp_s;
+  }
+  if (event.state == core::GimbalState::Settled) {
+    announced_.push_back({event.phase, event.step, event.stamp_s,
+                          std::numeric_limits<double>::infinity(), false});
+  }
+  if (event.state == core::GimbalState::Done) {
+    // A DONE inside an open blackout belongs to the protocol before the rewind: drop it.
+    for (const Blackout& b : blackouts_) {
+      if (event.stamp_s >= b.begin_s && event.stamp_s < b.end_s) {
+        ROS_INFO("calibration: DONE at %.3f s ignored (waiting for the rewound protocol)",
+                 event.stamp_s);
+        return;
+      }
+    }
+  }
   assembler_.add_command(event);
   if (event.state == core::GimbalState::Done) {
     done_pending_ = true;
@@ -182,9 +320,38 @@ void CalibrationNode::handle_command(const GimbalCommand& msg) {
   warn_on_new_drops();
 }
 
+void CalibrationNode::on_progress(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::string state;
+  for (const auto& kv : msg->values) {
+    if (kv.key == "state") state = kv.value;
+  }
+  controller_state_ = state;
+  if (state == "ABORTED") {
+    // "ABORTED: <reason>"
+    const std::size_t colon = msg->message.find(": ");
+    const std::string reason =
+        colon == std::string::npos ? msg->message : msg->message.substr(colon + 2);
+    if (reason != controller_abort_) {
+      controller_abort_ = reason;
+      if (fault_.empty()) ROS_ERROR("calibration: the gimbal controller aborted: %s", reason.c_str());
+    }
+  } else if (state == "STARTING" || state == "MOVING" || state == "SETTLED") {
+    controller_abort_.clear();
+  }
+}
+
 void CalibrationNode::handle_imu(const sensor_msgs::Imu& msg) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
-  assembler_.add_sample(to_core(msg));
+  ++imu_received_;
+  const core::ImuSample sample = to_core(msg);
+  if (std::isfinite(sample.stamp_s)) {
+    if (rate_count_ == 0) rate_first_stamp_s_ = sample.stamp_s;
+    rate_last_stamp_s_ = sample.stamp_s;
+    ++rate_count_;
+  }
+  if (sample.stamp_s > newest_sample_stamp_s_) newest_sample_stamp_s_ = sample.stamp_s;
+  assembler_.add_sample(sample);
   const core::AssemblerCounters& c = assembler_.counters();
   if (c.dropped_non_finite != warned_.dropped_non_finite ||
       c.dropped_backwards != warned_.dropped_backwards || c.dropped_late != warned_.dropped_late) {
@@ -221,50 +388,237 @@ void CalibrationNode::warn_on_new_drops() {
 void CalibrationNode::update(const ros::Time& now) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   if (now.isZero()) return;
+  if (resume_pending_ && controller_state_ == "DONE") {
+    // No gimbal command since the restart and the controller finished the protocol meanwhile
+    // (this node died in the last dwells): resume after a grace period. An idle controller
+    // (a fresh stand over an old checkpoint) is never started from here.
+    if (resume_deadline_.isZero()) {
+      resume_deadline_ =
+          now + ros::Duration(std::max(2.0, 2.0 * options_.assembler.reorder_window_s));
+    } else if (now >= resume_deadline_) {
+      begin_resume();
+    }
+  }
+  if (restore_done_) {
+    // The checkpoint holds a finished run: its result again.
+    restore_done_ = false;
+    run_fit(now);
+  }
   const double window = options_.assembler.reorder_window_s;
   if (done_pending_ && now.toSec() >= done_stamp_s_ + window) {
     assembler_.flush();
     done_pending_ = false;
     warn_on_new_drops();
-    run_fit(now);
+    check_watchdogs(now);
+    if (!fault_.empty() || !controller_abort_.empty()) {
+      // An aborted run gives no certificate, whatever it has measured.
+      ROS_ERROR("calibration: the run was aborted; no fit: %s", missing_message().c_str());
+      publish_status(now);
+    } else if (!request_pending()) {
+      run_fit(now);
+    } else {
+      ROS_WARN("calibration: DONE but a position is to be measured again; no fit yet");
+    }
   } else if (now.toSec() > window) {
     assembler_.flush_until(now.toSec() - window);
     warn_on_new_drops();
   }
+  check_watchdogs(now);
+  if (pending_restart_) {
+    pending_restart_ = false;
+    counters_before_ = counters();
+    assembler_.reset();
+    assembler_.set_dwell_callback([this](const core::DwellRecord& row) { on_dwell(row); });
+    warned_ = core::AssemblerCounters();
+    live_in_dwell_ = false;
+    announced_.clear();
+  }
   if (now < last_status_ || (now - last_status_).toSec() >= options_.status_period_s) {
     publish_status(now);
   }
+  if (updater_) updater_->update();
 }
 
-void CalibrationNode::on_timer(const ros::TimerEvent&) { update(ros::Time::now()); }
+void CalibrationNode::begin_resume() {
+  // Continue the checkpointed run: have the controller go to the position after the last
+  // checkpointed dwell (or to the first one), and discard everything measured before it.
+  resume_pending_ = false;
+  request_ = ControllerRequest();
+  request_.kind = ControllerRequest::Kind::Resume;
+  request_after_ = ros::Time();
+  blackouts_.push_back(Blackout());  // everything until the rewound MOVING
+  if (!table_.rows.empty()) {
+    const core::DwellRecord& last = table_.rows.back();
+    request_.phase = last.phase;
+    request_.step = last.step;
+    request_.approach = core::dwell_geometries(table_).back().approach;
+    request_.after = true;
+    request_.reason = "calibration node restarted from its checkpoint";
+    ROS_WARN("calibration: resuming after %s (%zu dwells restored)",
+             position_label(last.phase, last.step, request_.approach).c_str(),
+             table_.rows.size());
+  } else {
+    request_.phase = core::Phase::X;
+    request_.step = 0;
+    request_.approach = +1;
+    request_.after = false;
+    request_.reason = "calibration node restarted with no dwell checkpointed";
+    ROS_WARN("calibration: resuming from the first position (no dwell checkpointed)");
+  }
+}
+
+bool CalibrationNode::request_pending() const {
+  if (request_.kind != ControllerRequest::Kind::None) return true;
+  for (const Blackout& b : blackouts_) {
+    if (!std::isfinite(b.end_s)) return true;
+  }
+  return false;
+}
+
+void CalibrationNode::on_timer(const ros::TimerEvent&) {
+  const ros::Time now = ros::Time::now();
+  update(now);
+  // Requests to the gimbal controller go out without the lock: the reply is read by roscpp's
+  // network thread, which may be waiting for the lock in handle_imu (immediate_imu).
+  ControllerRequest request = take_request();
+  if (request.kind == ControllerRequest::Kind::None) return;
+  const std::string controller = options_.gimbal_controller;
+  bool called = false, success = false;
+  std::string message;
+  if (request.kind == ControllerRequest::Kind::Resume) {
+    nh_.setParam(controller + "/request/phase", std::string(core::phase_name(request.phase)));
+    nh_.setParam(controller + "/request/step", static_cast<int>(request.step));
+    nh_.setParam(controller + "/request/approach", request.approach);
+    nh_.setParam(controller + "/request/after", request.after);
+    nh_.setParam(controller + "/request/reason", request.reason);
+    std_srvs::Trigger srv;
+    ros::ServiceClient client = nh_.serviceClient<std_srvs::Trigger>(controller + "/resume");
+    called = client.waitForExistence(ros::Duration(0.5)) && client.call(srv);
+    success = srv.response.success;
+    message = srv.response.message;
+  } else {
+    nh_.setParam(controller + "/request/abort_reason", request.reason);
+    std_srvs::Trigger srv;
+    ros::ServiceClient client = nh_.serviceClient<std_srvs::Trigger>(controller + "/abort");
+    called = client.waitForExistence(ros::Duration(0.5)) && client.call(srv);
+    success = srv.response.success;
+    message = srv.response.message;
+  }
+  apply_reply(request, called, success, message);
+}
+
+CalibrationNode::ControllerRequest CalibrationNode::take_request() {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  ControllerRequest r;
+  if (request_.kind == ControllerRequest::Kind::None) return r;
+  const ros::Time now = ros::Time::now();
+  if (!request_after_.isZero() && now < request_after_) return r;
+  r = request_;
+  request_.kind = ControllerRequest::Kind::None;
+  return r;
+}
+
+void CalibrationNode::apply_reply(const ControllerRequest& request, bool called, bool success,
+                                  const std::string& message) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  const std::string controller = nh_.resolveName(options_.gimbal_controller);
+  if (!called) {
+    // The controller is not there (yet): ask again in a moment.
+    ROS_WARN_THROTTLE(10.0, "calibration: %s/%s not available; retrying", controller.c_str(),
+                      request.kind == ControllerRequest::Kind::Resume ? "resume" : "abort");
+    if (request_.kind == ControllerRequest::Kind::None) request_ = request;
+    request_after_ = ros::Time::now() + ros::Duration(0.5);
+    return;
+  }
+  if (request.kind == ControllerRequest::Kind::Abort) {
+    ROS_ERROR("calibration: asked %s to abort: %s", controller.c_str(), message.c_str());
+    return;
+  }
+  double stamp_s = 0.0;
+  if (!success || !parse_stamp(message, &stamp_s)) {
+    fault_ = "the gimbal controller refused to resume at " +
+             position_label(request.phase, request.step, request.approach) +
+             (request.after ? " (after)" : "") + ": " + message;
+    ROS_ERROR("calibration: %s", fault_.c_str());
+    blackouts_.clear();
+    write_state();
+    publish_status(ros::Time::now());
+    return;
+  }
+  for (Blackout& b : blackouts_) {
+    if (!std::isfinite(b.end_s)) b.end_s = stamp_s;
+  }
+  ROS_WARN("calibration: %s: %s", controller.c_str(), message.c_str());
+}
 
 void CalibrationNode::reset(const std::string& reason) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
-  const std::size_t dwells = assembler_.table().rows.size();
+  const std::size_t dwells = table_.rows.size();
   assembler_.reset();
   assembler_.set_dwell_callback([this](const core::DwellRecord& row) { on_dwell(row); });
   done_pending_ = false;
   has_result_ = false;
+  have_fit_ = false;
   fit_error_.clear();
   result_ = IntrinsicResult();
   if (csv_.is_open()) csv_.close();
   warned_ = core::AssemblerCounters();
+  counters_before_ = core::AssemblerCounters();
   rejected_commands_ = 0;
+  table_ = core::PositionTable();
+  rows_discarded_ = 0;
+  restored_ = false;
+  resume_pending_ = false;
+  resume_deadline_ = ros::Time();
+  restore_done_ = false;
+  blackouts_.clear();
+  request_ = ControllerRequest();
+  fault_.clear();
+  controller_abort_.clear();
+  last_fault_.clear();
+  retries_.clear();
+  retries_total_ = 0;
+  live_in_dwell_ = false;
+  announced_.clear();
+  analysis_json_.clear();
+  analysis_error_.clear();
+  newest_sample_stamp_s_ = -std::numeric_limits<double>::infinity();
   ++runs_;
+  clear_checkpoint();
   ROS_INFO("calibration: reset (%s); discarded %zu dwells", reason.c_str(), dwells);
   publish_status(ros::Time::now());
 }
 
+bool CalibrationNode::in_blackout(double t_start_s, double t_end_s) const {
+  for (const Blackout& b : blackouts_) {
+    if (t_end_s > b.begin_s && t_start_s < b.end_s) return true;
+  }
+  return false;
+}
+
 void CalibrationNode::on_dwell(const core::DwellRecord& row) {
+  for (Announced& a : announced_) {
+    if (a.begin_s + options_.assembler.settle_discard_s == row.t_start_s) a.recorded = true;
+  }
+  if (in_blackout(row.t_start_s, row.t_end_s)) {
+    ++rows_discarded_;
+    ROS_INFO("calibration: dwell %s %u/%u measured before the rewind: discarded",
+             core::phase_name(row.phase), row.step + 1, steps_seen_);
+    return;
+  }
+  if (!fault_.empty()) return;
+  if (options_.min_samples_per_dwell > 0 && row.n < options_.min_samples_per_dwell) {
+    std::ostringstream what;
+    what << "dwell " << position_label(row.phase, row.step, approach_of_next_row(row.phase, row.step))
+         << " has " << row.n << " samples (fewer than min_samples_per_dwell = "
+         << options_.min_samples_per_dwell << ")";
+    raise_fault(what.str(), row.phase, row.step, approach_of_next_row(row.phase, row.step),
+                row.t_start_s - options_.assembler.settle_discard_s);
+    return;
+  }
+  table_.rows.push_back(row);
   if (!options_.output_dir.empty()) {
-    if (!csv_.is_open()) {
-      csv_.open(csv_path(), std::ios::out | std::ios::trunc);
-      if (!csv_) {
-        ROS_ERROR_THROTTLE(10.0, "calibration: cannot write %s", csv_path().c_str());
-      } else {
-        csv_ << core::kPositionTableHeader << '\n';
-      }
-    }
+    if (!csv_.is_open()) open_csv(restored_);
     if (csv_) core::write_position_row(csv_, row);  // flushed: the checkpoint of this dwell
   }
   ROS_INFO("calibration: dwell %s %u/%u: n = %llu, mean (%.5f, %.5f, %.5f) m/s^2",
@@ -272,9 +626,118 @@ void CalibrationNode::on_dwell(const core::DwellRecord& row) {
            static_cast<unsigned long long>(row.n), row.mean(0), row.mean(1), row.mean(2));
 }
 
+int CalibrationNode::approach_of_next_row(core::Phase phase, std::uint32_t step) const {
+  core::PositionTable t = table_;
+  core::DwellRecord r;
+  r.phase = phase;
+  r.step = step;
+  r.angle_rad = core::step_angle(step, steps_seen_ ? steps_seen_ : std::max(options_.steps, 1u));
+  r.n = 1;
+  t.rows.push_back(r);
+  return core::dwell_geometries(t).back().approach;
+}
+
+void CalibrationNode::raise_fault(const std::string& what, core::Phase phase, std::uint32_t step,
+                                  int approach, double dwell_start_s) {
+  last_fault_ = what;
+  const auto key = std::make_tuple(core::index(phase), step, approach);
+  std::uint32_t& tries = retries_[key];
+  if (options_.retry_on_fault && tries < options_.max_retries) {
+    ++tries;
+    ++retries_total_;
+    ROS_WARN("calibration: %s; measuring it again (retry %u of %u)", what.c_str(), tries,
+             options_.max_retries);
+    Blackout b;
+    b.begin_s = dwell_start_s;
+    blackouts_.push_back(b);
+    request_ = ControllerRequest();
+    request_.kind = ControllerRequest::Kind::Resume;
+    request_.phase = phase;
+    request_.step = step;
+    request_.approach = approach;
+    request_.after = false;
+    request_.reason = what;
+    request_after_ = ros::Time();
+    done_pending_ = false;
+    restart_assembler();
+    return;
+  }
+  std::ostringstream reason;
+  reason << what;
+  if (options_.retry_on_fault) {
+    reason << "; gave up after " << tries << (tries == 1 ? " retry" : " retries")
+           << " (max_retries)";
+  } else {
+    reason << " (on_fault: abort)";
+  }
+  fault_ = reason.str();
+  ROS_ERROR("calibration: run aborted: %s", fault_.c_str());
+  request_ = ControllerRequest();
+  request_.kind = ControllerRequest::Kind::Abort;
+  request_.reason = fault_;
+  request_after_ = ros::Time();
+  has_result_ = false;
+  write_state();
+  publish_status(ros::Time::now());
+}
+
+void CalibrationNode::restart_assembler() {
+  // Deferred to the end of update(): a fault may be raised inside the assembler's callback.
+  // Events of the abandoned stretch still queued in the assembler are dropped with it; its
+  // counters carry over. It runs before the rewind request goes out (on_timer), so nothing of
+  // the rewound protocol is lost.
+  pending_restart_ = true;
+}
+
+void CalibrationNode::check_watchdogs(const ros::Time& now) {
+  if (!fault_.empty() || request_pending()) return;
+  // A dwell that ended without a single sample (the assembler records nothing for it).
+  const double released = now.toSec() - options_.assembler.reorder_window_s;
+  for (std::size_t i = 0; i < announced_.size(); ++i) {
+    const Announced& a = announced_[i];
+    if (a.recorded || !std::isfinite(a.end_s) || a.end_s > released) continue;
+    if (in_blackout(a.begin_s, a.end_s)) continue;
+    if (options_.min_samples_per_dwell > 0 || options_.imu_timeout_s > 0.0) {
+      const int approach = approach_of_next_row(a.phase, a.step);
+      const Announced copy = a;
+      announced_.clear();
+      raise_fault("dwell " + position_label(copy.phase, copy.step, approach) +
+                      " has no samples at all",
+                  copy.phase, copy.step, approach, copy.begin_s);
+      return;
+    }
+  }
+  while (!announced_.empty() && (announced_.front().recorded ||
+                                 (std::isfinite(announced_.front().end_s) &&
+                                  announced_.front().end_s <= released))) {
+    announced_.erase(announced_.begin());
+  }
+  // The IMU stream stopped during a dwell.
+  if (options_.imu_timeout_s > 0.0 && live_in_dwell_) {
+    const double since = std::max(live_dwell_.header.stamp.toSec(), newest_sample_stamp_s_);
+    const double silent = now.toSec() - since;
+    if (silent > options_.imu_timeout_s && !in_blackout(live_dwell_.header.stamp.toSec(),
+                                                        live_dwell_.header.stamp.toSec() + 1e-9)) {
+      const core::Phase phase = static_cast<core::Phase>(live_dwell_.phase);
+      const int approach = approach_of_next_row(phase, live_dwell_.step);
+      std::ostringstream what;
+      what.setf(std::ios::fixed);
+      what.precision(1);
+      what << "IMU stream stopped: no samples for " << silent << " s during dwell "
+           << position_label(phase, live_dwell_.step, approach) << " (imu_timeout_s = "
+           << options_.imu_timeout_s << ")";
+      live_in_dwell_ = false;
+      // Dwells before this one are complete: process them before the assembler restarts.
+      assembler_.flush_until(live_dwell_.header.stamp.toSec() - 1e-9);
+      raise_fault(what.str(), phase, live_dwell_.step, approach,
+                  live_dwell_.header.stamp.toSec());
+    }
+  }
+}
+
 std::array<int, 3> CalibrationNode::dwells_per_phase() const {
   std::array<int, 3> counts{{0, 0, 0}};
-  for (const core::DwellRecord& r : assembler_.table().rows) ++counts[core::index(r.phase)];
+  for (const core::DwellRecord& r : table_.rows) ++counts[core::index(r.phase)];
   return counts;
 }
 
@@ -284,6 +747,11 @@ std::string CalibrationNode::missing_message() const {
   const std::uint32_t n = steps_seen_ ? steps_seen_ : options_.steps;
   const int needed = n ? static_cast<int>(n) : options_.fit.min_positions_per_phase;
   std::ostringstream s;
+  if (!fault_.empty()) {
+    s << "run aborted: " << fault_ << "; ";
+  } else if (!controller_abort_.empty()) {
+    s << "run aborted by the gimbal controller: " << controller_abort_ << "; ";
+  }
   s << "no result yet: ";
   if (!fit_error_.empty()) s << "the fit failed (" << fit_error_ << "); ";
   // Which phases are missing dwells, and how many.
@@ -304,7 +772,9 @@ std::string CalibrationNode::missing_message() const {
       << " samples)";
   }
   if (done_pending_) s << "; DONE received, fitting after the reorder window";
-  const core::AssemblerCounters& c = assembler_.counters();
+  if (request_pending()) s << "; waiting for the gimbal controller to resume";
+  if (retries_total_ > 0) s << "; " << retries_total_ << " position(s) measured again";
+  const core::AssemblerCounters c = counters();
   s << "; samples used " << c.samples_used << ", dropped outside dwells "
     << c.dropped_outside_dwell;
   return s.str();
@@ -336,15 +806,41 @@ bool CalibrationNode::on_reset(std_srvs::Trigger::Request&, std_srvs::Trigger::R
   return true;
 }
 
+bool CalibrationNode::on_analyze(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  try {
+    const core::FitResult base = have_fit_ ? base_fit_ : core::fit(table_, options_.fit);
+    res.message = run_analysis(base, ros::Time::now());
+    res.success = true;
+  } catch (const std::exception& e) {
+    res.success = false;
+    res.message = std::string("analysis failed: ") + e.what() + " (" + missing_message() + ")";
+  }
+  return true;
+}
+
 void CalibrationNode::run_fit(const ros::Time& now) {
-  const core::PositionTable& table = assembler_.table();
+  const core::PositionTable& table = table_;
   try {
     const core::FitResult fit = core::fit(table, options_.fit);
+    base_fit_ = fit;
+    certificate_fit_ = fit;
+    have_fit_ = true;
     result_ = to_msg(fit);
     result_.header.stamp = now;
     result_.header.frame_id = options_.frame_id;
-    has_result_ = true;
     fit_error_.clear();
+    if (options_.analyze) {
+      try {
+        const std::string summary = run_analysis(fit, now);
+        ROS_INFO("calibration: analysis: %s", summary.c_str());
+      } catch (const std::exception& e) {
+        analysis_error_ = e.what();
+        ROS_ERROR("calibration: analysis failed: %s", e.what());
+      }
+    }
+    // run_analysis() replaced result_ when the certificate is the refit model.
+    has_result_ = true;
     result_pub_.publish(result_);
     ROS_INFO(
         "calibration: %s fit of %zu dwells: |u| %.6f |v| %.6f |w| %.6f, angles uv %.4f vw "
@@ -352,7 +848,8 @@ void CalibrationNode::run_fit(const ros::Time& now) {
         result_.model.c_str(), table.rows.size(), result_.responsivity[0], result_.responsivity[1],
         result_.responsivity[2], result_.angles_deg[0], result_.angles_deg[1],
         result_.angles_deg[2], result_.reduced_chi2);
-    write_result_yaml(fit, now);
+    write_result_yaml(certificate_fit_, now);
+    write_state();
   } catch (const std::exception& e) {
     has_result_ = false;
     fit_error_ = e.what();
@@ -361,7 +858,55 @@ void CalibrationNode::run_fit(const ros::Time& now) {
   publish_status(now);
 }
 
+std::string CalibrationNode::run_analysis(const core::FitResult& base, const ros::Time& now) {
+  core::AnalysisOptions options = options_.analysis;
+  options.local_gravity = options_.fit.local_gravity;
+  const core::AnalysisResult analysis = core::analyze(table_, options);
+  nlohmann::json j = core::analysis_to_json(analysis);
+  const bool refit = options_.certificate_refit && !analysis.effects.empty();
+  certificate_fit_ = refit ? analysis.after_fit : base;
+  if (have_fit_) {
+    result_ = to_msg(certificate_fit_);
+    result_.header.stamp = now;
+    result_.header.frame_id = options_.frame_id;
+    if (has_result_) result_pub_.publish(result_);
+  }
+  // Which model is the certificate, and which models the analysis compared.
+  j["certificate_model"] = certificate_fit_.model_label();
+  j["certificate_policy"] = options_.certificate_refit ? "refit" : "base";
+  j["base_model"] = analysis.before_fit.model_label();
+  j["refit_model"] = analysis.after_fit.model_label();
+  j["stamp"] = now.toSec();
+  analysis_json_ = j.dump(2);
+  analysis_error_.clear();
+  std_msgs::String msg;
+  msg.data = analysis_json_;
+  analysis_pub_.publish(msg);
+  if (!options_.output_dir.empty()) {
+    const std::string path = analysis_path();
+    std::ofstream out(path + ".tmp", std::ios::out | std::ios::trunc);
+    out << analysis_json_ << '\n';
+    out.close();
+    if (!out || std::rename((path + ".tmp").c_str(), path.c_str()) != 0) {
+      ROS_ERROR("calibration: cannot write %s", path.c_str());
+    }
+  }
+  std::ostringstream s;
+  s.precision(4);
+  s << "reduced chi2 " << analysis.before.summary.reduced_chi2 << " (" << analysis.before_fit.model_label()
+    << ") -> " << analysis.after.summary.reduced_chi2 << " (" << analysis.after_fit.model_label()
+    << "); named:";
+  if (analysis.effects.empty()) s << " none";
+  for (const core::NamedEffect& e : analysis.effects) {
+    s << " " << e.effect.label() << " = " << e.effect.value << " +- " << e.std << " (p "
+      << e.p_value << ")";
+  }
+  s << "; certificate: " << certificate_fit_.model_label();
+  return s.str();
+}
+
 void CalibrationNode::write_result_yaml(const core::FitResult& fit, const ros::Time& stamp) {
+  // (fit is the certificate: the base fit, or the refit with named effects.)
   if (options_.output_dir.empty()) return;
   const IntrinsicResult& r = result_;
   YAML::Emitter y;
@@ -401,13 +946,24 @@ void CalibrationNode::write_result_yaml(const core::FitResult& fit, const ros::T
       << fit.cross_sensitivity(i, 2) << YAML::EndSeq;
   }
   y << YAML::EndSeq;
+  if (!fit.effects.empty()) {
+    y << YAML::Key << "effects" << YAML::Value << YAML::BeginSeq;
+    for (std::size_t i = 0; i < fit.effects.size(); ++i) {
+      y << YAML::Flow << YAML::BeginMap << YAML::Key << "name" << YAML::Value
+        << fit.effects[i].name() << YAML::Key << "target" << YAML::Value
+        << fit.effects[i].target_name() << YAML::Key << "value" << YAML::Value
+        << fit.effects[i].value << YAML::Key << "std" << YAML::Value
+        << (i < fit.effects_std.size() ? fit.effects_std[i] : 0.0) << YAML::EndMap;
+    }
+    y << YAML::EndSeq;
+  }
   y << YAML::Key << "local_gravity" << YAML::Value << r.local_gravity;
   y << YAML::Key << "reduced_chi2" << YAML::Value << r.reduced_chi2;
   y << YAML::Key << "residual_rms" << YAML::Value << r.residual_rms;
   y << YAML::Key << "positions" << YAML::Value << YAML::Flow << YAML::BeginMap;
   for (int p = 0; p < 3; ++p) y << YAML::Key << kPhase[p] << YAML::Value << r.positions[p];
   y << YAML::EndMap;
-  const core::AssemblerCounters& c = assembler_.counters();
+  const core::AssemblerCounters c = counters();
   y << YAML::Key << "samples" << YAML::Value << YAML::BeginMap;
   y << YAML::Key << "used" << YAML::Value << c.samples_used;
   y << YAML::Key << "dropped_outside_dwell" << YAML::Value << c.dropped_outside_dwell;
@@ -437,18 +993,20 @@ void CalibrationNode::write_result_yaml(const core::FitResult& fit, const ros::T
 
 void CalibrationNode::publish_status(const ros::Time& now) {
   last_status_ = now;
-  const core::AssemblerCounters& c = assembler_.counters();
+  const core::AssemblerCounters c = counters();
   const std::array<int, 3> counts = dwells_per_phase();
   diagnostic_msgs::DiagnosticStatus msg;
   msg.name = nh_.resolveName("calibration");
   msg.hardware_id = "accel_intrinsics";
   std::string state = has_result_           ? "RESULT"
+                      : !fault_.empty() || !controller_abort_.empty() ? "ABORTED"
+                      : request_pending()   ? "RESUMING"
                       : !fit_error_.empty() ? "FAILED"
                       : done_pending_       ? "FITTING"
                       : commands_received_  ? "COLLECTING"
                                             : "WAITING";
-  msg.level = fit_error_.empty() ? diagnostic_msgs::DiagnosticStatus::OK
-                                 : diagnostic_msgs::DiagnosticStatus::ERROR;
+  msg.level = fit_error_.empty() && fault_.empty() ? diagnostic_msgs::DiagnosticStatus::OK
+                                                   : diagnostic_msgs::DiagnosticStatus::ERROR;
   msg.message = has_result_ ? "result available" : missing_message();
   msg.values.push_back(kv("state", state));
   for (int p = 0; p < 3; ++p)
@@ -464,8 +1022,183 @@ void CalibrationNode::publish_status(const ros::Time& now) {
   msg.values.push_back(kv("commands_out_of_order", std::to_string(c.commands_out_of_order)));
   msg.values.push_back(kv("commands_rejected", std::to_string(rejected_commands_)));
   msg.values.push_back(kv("last_warning", c.last_warning));
+  msg.values.push_back(kv("fault", !fault_.empty() ? fault_ : controller_abort_));
+  msg.values.push_back(kv("last_fault", last_fault_));
+  msg.values.push_back(kv("retries", std::to_string(retries_total_)));
+  msg.values.push_back(kv("dwells_discarded", std::to_string(rows_discarded_)));
+  msg.values.push_back(kv("restored", restored_ ? "true" : "false"));
+  msg.values.push_back(kv("model", has_result_ ? result_.model : ""));
   msg.values.push_back(kv("stamp", std::to_string(now.toSec())));
   status_pub_.publish(msg);
+}
+
+// ---- Checkpoint ------------------------------------------------------------------------------
+// position_table.csv: the accepted rows, one flushed line per dwell (the contract's CSV).
+// calibration_state.yaml: time_origin_s (t0 of the drift term: the first gimbal command of the
+// run), steps, rows, done, fault; rewritten atomically (tmp + rename) when one of them changes.
+
+void CalibrationNode::open_csv(bool append) {
+  std::error_code ec;
+  const bool exists = std::filesystem::exists(csv_path()) &&
+                      std::filesystem::file_size(csv_path(), ec) > 0 && !ec;
+  csv_.open(csv_path(), append ? std::ios::out | std::ios::app : std::ios::out | std::ios::trunc);
+  if (!csv_) {
+    ROS_ERROR_THROTTLE(10.0, "calibration: cannot write %s", csv_path().c_str());
+    return;
+  }
+  if (!append || !exists) csv_ << core::kPositionTableHeader << '\n' << std::flush;
+}
+
+void CalibrationNode::write_state() {
+  if (options_.output_dir.empty()) return;
+  YAML::Emitter y;
+  y << YAML::BeginMap;
+  y << YAML::Key << "time_origin_s" << YAML::Value << YAML::Precision(17) << table_.time_origin_s;
+  y << YAML::Key << "steps" << YAML::Value << steps_seen_;
+  y << YAML::Key << "rows" << YAML::Value << table_.rows.size();
+  y << YAML::Key << "done" << YAML::Value << has_result_;
+  y << YAML::Key << "fault" << YAML::Value << fault_;
+  y << YAML::EndMap;
+  const std::string path = state_path();
+  {
+    std::ofstream out(path + ".tmp", std::ios::out | std::ios::trunc);
+    out << "# accel_intrinsics calibration checkpoint (with position_table.csv)\n"
+        << y.c_str() << '\n';
+    if (!out) {
+      ROS_ERROR_THROTTLE(10.0, "calibration: cannot write %s", path.c_str());
+      return;
+    }
+  }
+  if (std::rename((path + ".tmp").c_str(), path.c_str()) != 0) {
+    ROS_ERROR_THROTTLE(10.0, "calibration: cannot rename %s.tmp", path.c_str());
+  }
+}
+
+void CalibrationNode::clear_checkpoint() {
+  if (options_.output_dir.empty()) return;
+  std::error_code ec;
+  std::filesystem::remove(state_path(), ec);
+  std::filesystem::remove(csv_path(), ec);
+}
+
+void CalibrationNode::load_checkpoint() {
+  if (!std::filesystem::exists(state_path())) {
+    ROS_INFO("calibration: resume: no checkpoint in %s, starting fresh",
+             options_.output_dir.c_str());
+    return;
+  }
+  try {
+    const YAML::Node state = YAML::LoadFile(state_path());
+    const double t0 = state["time_origin_s"].as<double>();
+    const std::uint32_t steps = state["steps"].as<std::uint32_t>();
+    const bool done = state["done"] && state["done"].as<bool>();
+    const std::string fault = state["fault"] ? state["fault"].as<std::string>() : "";
+    core::PositionTable table;
+    if (std::filesystem::exists(csv_path())) {
+      // A kill in the middle of a line leaves it incomplete: drop it (its dwell is measured again).
+      std::string text;
+      {
+        std::ifstream in(csv_path(), std::ios::binary);
+        text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+      }
+      if (!text.empty() && text.back() != '\n') {
+        text.erase(text.rfind('\n') == std::string::npos ? 0 : text.rfind('\n') + 1);
+        std::ofstream out(csv_path(), std::ios::binary | std::ios::trunc);
+        out << text;
+        ROS_WARN("calibration: resume: dropped an incomplete last line of %s", csv_path().c_str());
+      }
+      std::istringstream in(text);
+      if (!text.empty()) table = core::read_position_table(in, csv_path());
+    }
+    table.time_origin_s = t0;
+    table_ = table;
+    steps_seen_ = steps;
+    restored_ = true;
+    fault_ = fault;
+    if (!fault_.empty()) {
+      ROS_WARN("calibration: resume: the checkpointed run was aborted (%s)", fault_.c_str());
+    } else if (done) {
+      restore_done_ = true;
+    } else {
+      resume_pending_ = true;  // rewind the controller when it shows up
+    }
+    ROS_WARN("calibration: resume: restored %zu dwells (N = %u, t0 = %.6f s)%s from %s",
+             table_.rows.size(), steps, t0, done ? ", run complete" : "",
+             options_.output_dir.c_str());
+  } catch (const std::exception& e) {
+    // A checkpoint that cannot be read is not silently replaced by a fresh run.
+    throw ParamError("parameter " + param_name(pnh_, "resume") + ": cannot read the checkpoint in " +
+                     options_.output_dir + ": " + e.what());
+  }
+}
+
+// ---- Diagnostics ---------------------------------------------------------------------------
+
+void CalibrationNode::diagnose_imu(diagnostic_updater::DiagnosticStatusWrapper& status) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  const ros::Time now = ros::Time::now();
+  // The sensor's rate in its own time: samples over the span of their stamps since the last
+  // report (arrival times jitter with transport and, in simulation, with time_scale).
+  imu_rate_hz_ = rate_count_ > 1 && rate_last_stamp_s_ > rate_first_stamp_s_
+                     ? static_cast<double>(rate_count_ - 1) /
+                           (rate_last_stamp_s_ - rate_first_stamp_s_)
+                     : 0.0;
+  rate_count_ = 0;
+  const core::AssemblerCounters c = counters();
+  const std::uint64_t dropped_bad = c.dropped_non_finite + c.dropped_backwards + c.dropped_late;
+  if (options_.imu_timeout_s > 0.0 && live_in_dwell_ &&
+      now.toSec() - std::max(live_dwell_.header.stamp.toSec(), newest_sample_stamp_s_) >
+          options_.imu_timeout_s) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no IMU samples during a dwell");
+  } else if (dropped_bad > 0) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "bad IMU samples dropped");
+  } else {
+    status.summary(diagnostic_msgs::DiagnosticStatus::OK, "IMU stream ok");
+  }
+  status.add("rate_hz", imu_rate_hz_);
+  status.add("received", imu_received_);
+  status.add("samples_used", c.samples_used);
+  status.add("dropped_outside_dwell", c.dropped_outside_dwell);
+  status.add("dropped_settle_discard", c.dropped_settle_discard);
+  status.add("dropped_non_finite", c.dropped_non_finite);
+  status.add("dropped_backwards", c.dropped_backwards);
+  status.add("dropped_late", c.dropped_late);
+  status.add("newest_stamp_s", std::isfinite(newest_sample_stamp_s_) ? newest_sample_stamp_s_ : 0.0);
+}
+
+void CalibrationNode::diagnose_run(diagnostic_updater::DiagnosticStatusWrapper& status) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  const std::array<int, 3> counts = dwells_per_phase();
+  if (!fault_.empty() || !controller_abort_.empty()) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                   "run aborted: " + (fault_.empty() ? controller_abort_ : fault_));
+  } else if (!fit_error_.empty()) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "fit failed: " + fit_error_);
+  } else if (request_pending()) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                   "waiting for the gimbal controller to resume" +
+                       (last_fault_.empty() ? std::string() : " (" + last_fault_ + ")"));
+  } else if (has_result_) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::OK, "result available (" + result_.model + ")");
+  } else {
+    status.summary(diagnostic_msgs::DiagnosticStatus::OK, "collecting");
+  }
+  core::Phase phase;
+  std::uint32_t step = 0;
+  std::uint64_t samples = 0;
+  if (assembler_.current_dwell(&phase, &step, &samples)) {
+    status.add("current_dwell", position_label(phase, step, +1));
+    status.add("current_dwell_samples", samples);
+  } else {
+    status.add("current_dwell", "");
+    status.add("current_dwell_samples", 0);
+  }
+  for (int p = 0; p < 3; ++p) status.add(std::string("dwells_") + kPhase[p], counts[p]);
+  status.add("steps", steps_seen_ ? steps_seen_ : options_.steps);
+  status.add("retries", retries_total_);
+  status.add("dwells_discarded", rows_discarded_);
+  status.add("last_fault", last_fault_);
+  status.add("restored", restored_);
 }
 
 }  // namespace accel_intrinsics

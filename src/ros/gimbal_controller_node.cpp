@@ -75,6 +75,18 @@ GimbalControllerOptions GimbalControllerOptions::load(const ros::NodeHandle& pnh
   read_param(pnh, "settle_timeout_s", &o.settle_timeout_s);
   require(std::isfinite(o.settle_timeout_s) && o.settle_timeout_s > 0.0, pnh, "settle_timeout_s",
           "must be > 0 s");
+  read_param(pnh, "resume_phase", &o.resume_phase);
+  require(o.resume_phase.empty() || o.resume_phase == "x" || o.resume_phase == "y" ||
+              o.resume_phase == "z",
+          pnh, "resume_phase", "must be x, y or z (or empty: from the start)");
+  read_param(pnh, "resume_step", &o.resume_step);
+  require(o.resume_step < o.protocol.steps_per_phase, pnh, "resume_step",
+          "must be below steps (" + std::to_string(o.protocol.steps_per_phase) + ")");
+  read_param(pnh, "resume_approach", &o.resume_approach);
+  require(o.resume_approach == 1 || o.resume_approach == -1, pnh, "resume_approach",
+          "must be +1 (up sweep) or -1 (return sweep)");
+  require(o.resume_approach == 1 || o.protocol.two_way, pnh, "resume_approach",
+          "-1 needs two_way: true");
   read_param(pnh, "driver", &o.driver);
   require(o.driver == "simulated", pnh, "driver",
           "unknown gimbal driver '" + o.driver + "' (known: simulated)");
@@ -96,6 +108,8 @@ GimbalControllerOptions GimbalControllerOptions::load(const ros::NodeHandle& pnh
   read_param(sim, "ringing_rad", &o.simulated.ringing_rad);
   read_param(sim, "ringing_hz", &o.simulated.ringing_hz);
   read_effects(sim, "effects", &o.simulated.effects);
+  read_param(sim, "never_settle_phase", &o.simulated.never_settle_phase);
+  read_param(sim, "never_settle_at_step", &o.simulated.never_settle_at_step);
   try {
     o.simulated.validate();
   } catch (const std::invalid_argument& e) {
@@ -139,7 +153,22 @@ GimbalControllerNode::GimbalControllerNode(ros::NodeHandle nh, ros::NodeHandle p
   progress_pub_ = nh_.advertise<diagnostic_msgs::DiagnosticStatus>(names::kProgressTopic, 10, true);
   start_srv_ = nh_.advertiseService(names::kStartService, &GimbalControllerNode::on_start, this);
   abort_srv_ = nh_.advertiseService(names::kAbortService, &GimbalControllerNode::on_abort, this);
+  resume_srv_ =
+      nh_.advertiseService(names::kResumeService, &GimbalControllerNode::on_resume, this);
+  updater_.reset(new diagnostic_updater::Updater(nh_, pnh_));
+  updater_->setHardwareID(driver_->name() + " gimbal " + nh_.getNamespace());
+  updater_->add("protocol", this, &GimbalControllerNode::diagnose);
   autostart_pending_ = options_.autostart;
+  if (!options_.resume_phase.empty()) {
+    const core::Phase phase = options_.resume_phase == "x"   ? core::Phase::X
+                              : options_.resume_phase == "y" ? core::Phase::Y
+                                                             : core::Phase::Z;
+    start_index_ =
+        find_position(phase, options_.resume_step, options_.resume_approach, false);
+    ROS_WARN("gimbal controller: runs begin at phase %s step %u (position %zu of %zu)",
+             options_.resume_phase.c_str(), options_.resume_step, start_index_ + 1,
+             schedule_.size());
+  }
   timer_ =
       nh_.createTimer(ros::Duration(1.0 / options_.tick_hz), &GimbalControllerNode::on_timer, this);
   ROS_INFO("gimbal controller: %s driver, %zu positions (N = %u per phase%s), about %.0f s; %s",
@@ -167,7 +196,8 @@ bool GimbalControllerNode::start(const ros::Time& now, std::string* message) {
   state_ = State::Starting;
   state_since_ = now;
   start_at_ = now + ros::Duration(options_.start_delay_s);
-  index_ = 0;
+  index_ = start_index_;
+  start_index_ = 0;  // the resume_* parameters place the first run only
   last_error_.clear();
   std::ostringstream s;
   s << "started: " << schedule_.size() << " positions, about " << num(time_left_s(now), 0) << " s";
@@ -205,8 +235,112 @@ bool GimbalControllerNode::on_start(std_srvs::Trigger::Request&, std_srvs::Trigg
 }
 
 bool GimbalControllerNode::on_abort(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-  res.success = abort(ros::Time::now(), "abort requested", &res.message);
+  // A caller may say why in ~abort_reason (the calibration node's watchdogs do).
+  std::string reason = "abort requested";
+  if (pnh_.getParam("request/abort_reason", reason)) pnh_.deleteParam("request/abort_reason");
+  res.success = abort(ros::Time::now(), reason, &res.message);
   return true;
+}
+
+std::size_t GimbalControllerNode::find_position(core::Phase phase, std::uint32_t step,
+                                                int approach, bool after) const {
+  for (std::size_t i = 0; i < schedule_.size(); ++i) {
+    const core::ScheduledPosition& p = schedule_[i];
+    if (p.phase == phase && p.step == step && p.approach == approach) return after ? i + 1 : i;
+  }
+  return schedule_.size();
+}
+
+bool GimbalControllerNode::on_resume(std_srvs::Trigger::Request&,
+                                     std_srvs::Trigger::Response& res) {
+  std::string phase_name, reason = "resume requested";
+  int step = 0, approach = +1;
+  bool after = false;
+  // The request's arguments, set by the caller just before the call.
+  if (!pnh_.getParam("request/phase", phase_name) || !pnh_.getParam("request/step", step)) {
+    res.success = false;
+    res.message = "set " + pnh_.resolveName("request/phase") + " and " +
+                  pnh_.resolveName("request/step") + " first";
+    return true;
+  }
+  pnh_.getParam("request/approach", approach);
+  pnh_.getParam("request/after", after);
+  pnh_.getParam("request/reason", reason);
+  pnh_.deleteParam("request");
+  core::Phase phase;
+  if (phase_name == "x") {
+    phase = core::Phase::X;
+  } else if (phase_name == "y") {
+    phase = core::Phase::Y;
+  } else if (phase_name == "z") {
+    phase = core::Phase::Z;
+  } else {
+    res.success = false;
+    res.message = "request/phase must be x, y or z (got '" + phase_name + "')";
+    return true;
+  }
+  const std::size_t index =
+      step < 0 ? schedule_.size() + 1
+               : find_position(phase, static_cast<std::uint32_t>(step), approach, false);
+  if (index >= schedule_.size()) {
+    res.success = false;
+    res.message = "no position phase " + phase_name + " step " + std::to_string(step) +
+                  " approach " + std::to_string(approach) + " in the protocol";
+    return true;
+  }
+  res.success = resume(ros::Time::now(), after ? index + 1 : index, reason, &res.message);
+  return true;
+}
+
+bool GimbalControllerNode::resume(const ros::Time& now, std::size_t index,
+                                  const std::string& reason, std::string* message) {
+  ++resumes_;
+  std::ostringstream s;
+  s.precision(17);
+  if (index >= schedule_.size()) {
+    // Nothing left after that position: the protocol is complete.
+    if (state_ == State::Moving || state_ == State::Dwelling) driver_->stop(now.toSec());
+    index_ = schedule_.size() - 1;
+    publish_command(now, GimbalCommand::DONE, schedule_[index_]);
+    state_ = State::Done;
+    state_since_ = now;
+    s << "resume (" << reason << "): nothing left, DONE stamp=" << now.toSec();
+  } else {
+    begin_move(index, now);
+    const core::ScheduledPosition& p = schedule_[index];
+    s << "resume (" << reason << "): moving to phase " << core::phase_name(p.phase) << " step "
+      << p.step << (p.approach < 0 ? " (return sweep)" : "") << ", position " << index + 1
+      << " of " << schedule_.size() << ", MOVING stamp=" << now.toSec();
+  }
+  last_error_.clear();
+  *message = s.str();
+  ROS_WARN("gimbal controller: %s", message->c_str());
+  publish_progress(now, false);
+  return true;
+}
+
+void GimbalControllerNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
+  const ros::Time now = ros::Time::now();
+  const core::ScheduledPosition& p = schedule_[std::min(index_, schedule_.size() - 1)];
+  const bool running = state_ == State::Moving || state_ == State::Dwelling;
+  if (state_ == State::Aborted) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "aborted: " + last_error_);
+  } else if (state_ == State::Moving &&
+             (now - state_since_).toSec() > 0.5 * options_.settle_timeout_s) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "the gimbal is slow to settle");
+  } else {
+    status.summary(diagnostic_msgs::DiagnosticStatus::OK, state_name(state_));
+  }
+  status.add("state", state_name(state_));
+  status.add("phase", running ? core::phase_name(p.phase) : "");
+  status.add("step", running ? std::to_string(p.step) : "");
+  status.add("steps", options_.protocol.steps_per_phase);
+  status.add("position", running ? index_ + 1 : (state_ == State::Done ? schedule_.size() : 0));
+  status.add("positions", schedule_.size());
+  status.add("time_left_s", time_left_s(now));
+  status.add("in_state_s", state_since_.isZero() ? 0.0 : (now - state_since_).toSec());
+  status.add("resumes", resumes_);
+  status.add("last_error", last_error_);
 }
 
 void GimbalControllerNode::begin_move(std::size_t index, const ros::Time& now) {
@@ -236,7 +370,7 @@ void GimbalControllerNode::tick(const ros::Time& now) {
   switch (state_) {
     case State::Starting:
       if (now >= start_at_) {
-        begin_move(0, now);
+        begin_move(index_, now);
         changed = true;
       }
       break;
@@ -248,7 +382,11 @@ void GimbalControllerNode::tick(const ros::Time& now) {
         changed = true;
       } else if ((now - state_since_).toSec() > options_.settle_timeout_s) {
         std::string message;
-        abort(now, "the gimbal did not settle within settle_timeout_s", &message);
+        std::ostringstream reason;
+        reason << "the gimbal did not settle at phase " << core::phase_name(schedule_[index_].phase)
+               << " step " << schedule_[index_].step << " within settle_timeout_s = "
+               << options_.settle_timeout_s << " s";
+        abort(now, reason.str(), &message);
         ROS_ERROR("gimbal controller: %s", message.c_str());
       }
       break;
@@ -269,6 +407,7 @@ void GimbalControllerNode::tick(const ros::Time& now) {
       break;
   }
   publish_tf(now);
+  if (updater_) updater_->update();
   const bool periodic = (now - last_progress_).toSec() >= 1.0 / options_.progress_hz;
   if (changed || periodic || now < last_progress_) publish_progress(now, periodic);
 }

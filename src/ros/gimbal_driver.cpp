@@ -74,6 +74,8 @@ void SimulatedGimbalOptions::validate() const {
     throw std::invalid_argument("ringing_rad must be finite with |ringing_rad| <= 0.5 rad");
   if (!finite_non_negative(ringing_hz))
     throw std::invalid_argument("ringing_hz must be finite and >= 0");
+  if (never_settle_phase != "x" && never_settle_phase != "y" && never_settle_phase != "z")
+    throw std::invalid_argument("never_settle_phase must be x, y or z");
   std::set<std::pair<int, int>> seen;
   for (const core::Effect& e : effects) {
     if (!core::is_gimbal_effect(e.kind)) {
@@ -135,6 +137,11 @@ void SimulatedGimbalDriver::move_to(const GimbalTarget& target, double t_s) {
 }
 
 bool SimulatedGimbalDriver::settled(double t_s) const {
+  if (moved_ && !stopped_ && options_.never_settle_at_step >= 0 &&
+      static_cast<int>(target_.step) == options_.never_settle_at_step &&
+      options_.never_settle_phase == core::phase_name(target_.phase)) {
+    return false;  // injected fault
+  }
   return !moved_ || stopped_ || t_s >= move_end_s_ + options_.settle_s;
 }
 

@@ -24,6 +24,11 @@ struct AccelerometerOptions {
   double poll_hz = 200.0;                   // how often the source is polled (node clock), Hz
   double tf_cache_s = 60.0;                 // tf history kept, s
   SimulatedAccelerometerOptions simulated;  // ~device/S, ~device/O, ~device/effects, ~rate_hz, ...
+  // Fault injection (~fault/...), times in seconds after the first gimbal command (t0):
+  double stall_after_s = -1.0;  // publish nothing from t0 + stall_after_s (< 0: off) ...
+  double stall_for_s = 1e9;     // ... for this long (default: for good)
+  double decimate_after_s = -1.0;  // from t0 + decimate_after_s (< 0: off) ...
+  int decimate = 1;                // ... publish only every decimate-th sample
 
   // Reads the private parameters; throws ParamError naming the parameter.
   static AccelerometerOptions load(const ros::NodeHandle& pnh);
@@ -56,6 +61,8 @@ class AccelerometerNode {
   bool have_origin_ = false;
   std::vector<core::ImuSample> batch_;
   std::uint64_t published_ = 0;
+  double time_origin_s_ = 0.0;
+  std::uint64_t fault_dropped_ = 0, decimate_counter_ = 0;
 };
 
 }  // namespace accel_intrinsics

@@ -2,22 +2,46 @@
 // (core::DwellAssembler, the same class offline_fit uses), checkpoints each completed dwell to
 // the position table CSV, fits on DONE, publishes the latched calibration/result, writes the
 // result YAML, and serves calibration/get_intrinsics and calibration/reset.
+//
+// Beyond that (issues 5 and 6):
+//  - analysis: with ~analyze (or the calibration/analyze service) core::analyze() runs after
+//    the fit; the JSON goes to the latched calibration/analysis (std_msgs/String) and to
+//    analysis.json. The certificate (calibration/result) stays the base fit unless
+//    ~certificate_model is "refit"; its `model` field always names the model it holds.
+//  - resume: the node's own position table (rows accepted so far, in protocol order) and a small
+//    state file (time origin, N, done, fault) are checkpointed in output_dir; with ~resume a
+//    restarted node reloads them and asks the gimbal controller to continue after the last
+//    checkpointed dwell (gimbal_controller/resume), discarding whatever it measured meanwhile.
+//  - watchdogs: no IMU samples for ~imu_timeout_s during a dwell, a dwell with fewer than
+//    ~min_samples_per_dwell samples: per ~on_fault the position is measured again (the gimbal
+//    controller is rewound to it; at most ~max_retries times per position) or the run is aborted
+//    (gimbal_controller/abort); get_intrinsics then says why.
+//  - diagnostics: diagnostic_updater status on /diagnostics (IMU rate, dropped samples by reason,
+//    current dwell, faults).
 #pragma once
 
+#include <diagnostic_msgs/DiagnosticStatus.h>
 #include <ros/callback_queue_interface.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
 #include <std_srvs/Trigger.h>
 
+#include <diagnostic_updater/diagnostic_updater.h>
+
 #include <array>
 #include <fstream>
+#include <limits>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <tuple>
+#include <vector>
 
 #include "accel_intrinsics/GetIntrinsics.h"
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/IntrinsicResult.h"
+#include "accel_intrinsics/core/discrepancy.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/fit.h"
 
@@ -43,6 +67,19 @@ struct CalibrationOptions {
   std::string frame_id = "dut";  // frame of the result header
   bool immediate_imu = true;     // handle IMU messages in the network thread (see above)
 
+  // Analysis (issue 5).
+  bool analyze = false;                 // run core::analyze() after each fit
+  core::AnalysisOptions analysis;       // ~analysis/alpha, max_effects, monte_carlo_draws, seed
+  bool certificate_refit = false;       // ~certificate_model: base (false) | refit (true)
+
+  // Resume and watchdogs (issue 6).
+  bool resume = false;                  // reload the checkpoint of output_dir at start
+  double imu_timeout_s = 0.0;           // no samples this long during a dwell: fault (0 = off)
+  std::uint32_t min_samples_per_dwell = 0;  // fewer samples in a dwell: fault (0 = off)
+  bool retry_on_fault = false;          // ~on_fault: abort (false) | retry (true)
+  std::uint32_t max_retries = 2;        // retries of one position before aborting
+  std::string gimbal_controller = "gimbal_controller";  // the controller's node name (relative)
+
   // Reads the private parameters; throws ParamError naming the parameter.
   static CalibrationOptions load(const ros::NodeHandle& pnh);
 };
@@ -67,15 +104,59 @@ class CalibrationNode {
   const core::DwellAssembler& assembler() const { return assembler_; }
   std::string csv_path() const;
   std::string yaml_path() const;
+  std::string state_path() const;
+  std::string analysis_path() const;
+  // The rows accepted so far (checkpointed, restored ones included) with the run's time origin.
+  const core::PositionTable& table() const { return table_; }
+  // Non-empty after a watchdog aborted the run: why.
+  const std::string& fault() const { return fault_; }
 
  private:
   void on_command(const GimbalCommand::ConstPtr& msg) { handle_command(*msg); }
   void on_imu(const sensor_msgs::Imu::ConstPtr& msg) { handle_imu(*msg); }
+  void on_progress(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg);
   void on_timer(const ros::TimerEvent&);
   bool on_get_intrinsics(GetIntrinsics::Request& req, GetIntrinsics::Response& res);
   bool on_reset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool on_analyze(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   void on_dwell(const core::DwellRecord& row);
   void run_fit(const ros::Time& now);
+  // Runs the analysis on table_ and publishes it; returns a one-line summary (throws on failure).
+  std::string run_analysis(const core::FitResult& base, const ros::Time& now);
+
+  // Checkpoint.
+  void load_checkpoint();
+  void write_state();
+  void open_csv(bool append);
+  void clear_checkpoint();
+
+  // Watchdogs and resynchronization with the gimbal controller.
+  struct Blackout {
+    double begin_s = -std::numeric_limits<double>::infinity();
+    double end_s = std::numeric_limits<double>::infinity();  // stamp of the rewound MOVING
+  };
+  // What to ask the gimbal controller once the lock is released.
+  struct ControllerRequest {
+    enum class Kind { None, Resume, Abort } kind = Kind::None;
+    core::Phase phase = core::Phase::X;
+    std::uint32_t step = 0;
+    int approach = +1;
+    bool after = false;  // resume at the position after (phase, step, approach)
+    std::string reason;
+  };
+  void raise_fault(const std::string& what, core::Phase phase, std::uint32_t step, int approach,
+                   double dwell_start_s);
+  void check_watchdogs(const ros::Time& now);
+  bool in_blackout(double t_start_s, double t_end_s) const;
+  bool request_pending() const;  // a rewind asked for or not yet confirmed
+  void begin_resume();           // continue the checkpointed run (after a restart)
+  void restart_assembler();
+  ControllerRequest take_request();
+  void apply_reply(const ControllerRequest& request, bool called, bool success,
+                   const std::string& message);
+  void diagnose_imu(diagnostic_updater::DiagnosticStatusWrapper& status);
+  void diagnose_run(diagnostic_updater::DiagnosticStatusWrapper& status);
+  int approach_of_next_row(core::Phase phase, std::uint32_t step) const;
   void write_result_yaml(const core::FitResult& fit, const ros::Time& stamp);
   void publish_status(const ros::Time& now);
   void warn_on_new_drops();
@@ -88,10 +169,11 @@ class CalibrationNode {
   mutable std::recursive_mutex mutex_;
   ImmediateCallbackQueue immediate_queue_;
   core::DwellAssembler assembler_;
-  ros::Subscriber command_sub_, imu_sub_;
-  ros::Publisher result_pub_, status_pub_;
-  ros::ServiceServer get_srv_, reset_srv_;
+  ros::Subscriber command_sub_, imu_sub_, progress_sub_;
+  ros::Publisher result_pub_, status_pub_, analysis_pub_;
+  ros::ServiceServer get_srv_, reset_srv_, analyze_srv_;
   ros::Timer timer_;
+  std::unique_ptr<diagnostic_updater::Updater> updater_;
 
   std::ofstream csv_;
   bool done_pending_ = false;  // DONE received, waiting for the reorder window
@@ -105,6 +187,48 @@ class CalibrationNode {
   ros::Time last_status_;
   core::AssemblerCounters warned_;  // counters at the last warning
   std::uint64_t rejected_commands_ = 0;
+
+  // Accepted rows (restored + this session's, minus discarded ones) and the run's time origin.
+  core::PositionTable table_;
+  bool have_fit_ = false;
+  core::FitResult base_fit_;
+  core::FitResult certificate_fit_;  // base_fit_, or the refit with named effects
+  std::string analysis_json_;
+  std::string analysis_error_;
+  // Counters of assemblers restarted after a fault, added to the current one's for reports.
+  core::AssemblerCounters counters_before_;
+  core::AssemblerCounters counters() const;
+  std::uint64_t rows_discarded_ = 0;
+  bool restored_ = false;          // rows were reloaded from a checkpoint
+  bool resume_pending_ = false;    // restored mid-protocol: rewind the controller on its first command
+  ros::Time resume_deadline_;      // ... or at this time if no command comes
+  std::string controller_state_;   // latest state on gimbal_controller/progress
+  bool restore_done_ = false;      // the checkpoint says DONE: fit it at the first update
+  std::vector<Blackout> blackouts_;
+  ControllerRequest request_;      // pending, sent by on_timer outside the lock
+  bool pending_restart_ = false;   // restart the assembler at the end of update()
+  ros::Time request_after_;        // do not retry a failed request before this
+  std::string fault_;              // the run was aborted by a watchdog: why
+  std::string controller_abort_;   // the gimbal controller's progress said ABORTED: why
+  std::string last_fault_;         // the latest fault (retried or not)
+  std::map<std::tuple<int, std::uint32_t, int>, std::uint32_t> retries_;  // per position
+  std::uint64_t retries_total_ = 0;
+  // What the latest commands (arrival order) say: in a dwell since this SETTLED stamp?
+  bool live_in_dwell_ = false;
+  GimbalCommand live_dwell_;
+  double newest_sample_stamp_s_ = -std::numeric_limits<double>::infinity();
+  // Dwells announced by the commands (stamp order), to catch a dwell with no sample at all.
+  struct Announced {
+    core::Phase phase;
+    std::uint32_t step;
+    double begin_s, end_s;
+    bool recorded;
+  };
+  std::vector<Announced> announced_;
+  // IMU rate for the diagnostics.
+  std::uint64_t imu_received_ = 0, rate_count_ = 0;
+  double rate_first_stamp_s_ = 0.0, rate_last_stamp_s_ = 0.0;
+  double imu_rate_hz_ = 0.0;
 };
 
 }  // namespace accel_intrinsics

@@ -1,9 +1,19 @@
 // The gimbal controller node: runs the protocol of build_schedule() as a state machine over a
 // GimbalDriver, publishes gimbal/command at each state change (MOVING, SETTLED, DONE),
 // broadcasts the true DUT orientation on tf (world -> gimbal -> dut), offers
-// gimbal_controller/start and gimbal_controller/abort, and reports progress.
+// gimbal_controller/start, gimbal_controller/abort and gimbal_controller/resume, and reports
+// progress (gimbal_controller/progress and diagnostic_updater on /diagnostics).
+//
+// Resume: the first run can begin at any position of the schedule (~resume_phase, ~resume_step,
+// ~resume_approach at start-up: the next start or autostart begins there), and a running,
+// finished or aborted protocol can be moved to one: gimbal_controller/resume reads its
+// arguments from ~request/phase, ~request/step, ~request/approach, ~request/after (the position
+// after that one) and ~request/reason at call time (set them, then call; they are deleted).
+// The reply ends with "stamp=<t>", the stamp of the MOVING (or DONE) it published.
+// gimbal_controller/abort takes its reason from ~request/abort_reason when set.
 #pragma once
 
+#include <diagnostic_updater/diagnostic_updater.h>
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_msgs/TFMessage.h>
@@ -25,6 +35,9 @@ struct GimbalControllerOptions {
   double tick_hz = 100.0;            // state machine and tf rate on the node clock, Hz
   double progress_hz = 1.0;          // progress topic and log rate, Hz
   double settle_timeout_s = 60.0;    // abort when a move has not settled in this time, s
+  std::string resume_phase;          // "" (from the start) or x|y|z: first position of a run
+  std::uint32_t resume_step = 0;
+  int resume_approach = +1;          // +1: the up sweep, -1: the return sweep (two_way)
   std::string driver = "simulated";  // gimbal backend
   SimulatedGimbalOptions simulated;  // ~simulated/...: move and settling model, gimbal effects
   std::string world_frame = "world";
@@ -57,6 +70,12 @@ class GimbalControllerNode {
   bool start(const ros::Time& now, std::string* message);
   // Stops a run (what the abort service does); publishes DONE to close the open dwell.
   bool abort(const ros::Time& now, const std::string& reason, std::string* message);
+  // Moves to schedule position `index` now and continues the protocol from there, from any
+  // state; index == size publishes DONE. Fills message (ends with "stamp=<t>").
+  bool resume(const ros::Time& now, std::size_t index, const std::string& reason,
+              std::string* message);
+  // Schedule index of (phase, step, approach); size() if none. `after`: the one after it.
+  std::size_t find_position(core::Phase phase, std::uint32_t step, int approach, bool after) const;
 
   State state() const { return state_; }
   static const char* state_name(State state);
@@ -65,6 +84,8 @@ class GimbalControllerNode {
   void on_timer(const ros::TimerEvent& event);
   bool on_start(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool on_abort(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool on_resume(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
   void begin_move(std::size_t index, const ros::Time& now);
   void publish_command(const ros::Time& now, std::uint8_t state, const core::ScheduledPosition& p);
   void publish_tf(const ros::Time& now);
@@ -75,8 +96,9 @@ class GimbalControllerNode {
   GimbalControllerOptions options_;
   std::unique_ptr<GimbalDriver> driver_;
   ros::Publisher command_pub_, tf_pub_, progress_pub_;
-  ros::ServiceServer start_srv_, abort_srv_;
+  ros::ServiceServer start_srv_, abort_srv_, resume_srv_;
   ros::Timer timer_;
+  std::unique_ptr<diagnostic_updater::Updater> updater_;
 
   std::vector<core::ScheduledPosition> schedule_;
   State state_ = State::Idle;
@@ -87,6 +109,8 @@ class GimbalControllerNode {
   ros::Time last_tf_;
   std::string last_error_;
   bool autostart_pending_ = false;
+  std::size_t start_index_ = 0;  // where the next start begins (resume_* parameters)
+  std::uint64_t resumes_ = 0;
 };
 
 }  // namespace accel_intrinsics

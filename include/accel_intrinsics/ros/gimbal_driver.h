@@ -76,6 +76,10 @@ struct SimulatedGimbalOptions {
   double ringing_hz = 4.0;      // its frequency, Hz
   // angle_offset, angle_scale, axis_tilt, backlash; at most one of each kind per phase.
   std::vector<core::Effect> effects;
+  // Fault injection: a move to (never_settle_phase, never_settle_at_step) never settles (the
+  // gimbal keeps hunting around the target). never_settle_at_step < 0: off.
+  std::string never_settle_phase = "x";
+  int never_settle_at_step = -1;
 
   // Throws std::invalid_argument naming the field.
   void validate() const;

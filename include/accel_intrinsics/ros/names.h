@@ -20,6 +20,13 @@ constexpr char kProgressTopic[] = "gimbal_controller/progress";
 // diagnostic_msgs/DiagnosticStatus: dwells per phase and the dropped-sample counters.
 constexpr char kCalibrationStatusTopic[] = "calibration/status";
 constexpr char kClockTopic[] = "/clock";
+// std_msgs/String, latched: the JSON of core::analysis_to_json() after an analysis (issue 5).
+constexpr char kAnalysisTopic[] = "calibration/analysis";
+// std_srvs/Trigger: run the analysis on the current position table.
+constexpr char kAnalyzeService[] = "calibration/analyze";
+// std_srvs/Trigger: continue the protocol at the position named by the controller's private
+// parameters resume_phase, resume_step, resume_approach, resume_after (set them, then call).
+constexpr char kResumeService[] = "gimbal_controller/resume";
 
 constexpr char kWorldFrame[] = "world";
 constexpr char kGimbalFrame[] = "gimbal";

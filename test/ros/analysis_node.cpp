@@ -1,0 +1,74 @@
+// The analysis from the calibration node (test/ros/analysis_node.test).
+#include <std_msgs/String.h>
+#include <std_srvs/Trigger.h>
+
+#include "stand_checks.h"
+
+TEST(AnalysisNode, NamesTheHiddenEffectAndTheCertificateSaysWhichModel) {
+  ros::NodeHandle pnh("~");
+  const stand_checks::Limits limits = stand_checks::load_limits(pnh);
+  double timeout_s = 300.0, effect_value = 2e-4;
+  int steps = 8;
+  std::string output_dir;
+  pnh.getParam("timeout_s", timeout_s);
+  pnh.getParam("steps", steps);
+  pnh.getParam("effect_value", effect_value);
+  ASSERT_TRUE(pnh.getParam("output_dir", output_dir));
+  ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
+
+  // The whole run; with the effect in the certificate the intrinsics match the truth.
+  stand_checks::supervise_and_check({""}, limits, timeout_s, output_dir + "/supervise.json");
+
+  const accel_intrinsics::GetIntrinsics::Response res = stand_checks::get_intrinsics("");
+  ASSERT_TRUE(res.success) << res.message;
+  const accel_intrinsics::IntrinsicResult& r = res.result;
+  EXPECT_EQ(r.model, "joint+quadratic_nonlinearity[u]") << res.message;
+  ASSERT_EQ(r.effect_names.size(), 1u);
+  EXPECT_EQ(r.effect_names[0], "quadratic_nonlinearity");
+  EXPECT_EQ(r.effect_targets[0], "u");
+  ASSERT_EQ(r.effect_std.size(), 1u);
+  EXPECT_GT(r.effect_std[0], 0.0);
+  EXPECT_LE(std::abs(r.effect_values[0] - effect_value), 4.0 * r.effect_std[0])
+      << r.effect_values[0] << " +- " << r.effect_std[0];
+  EXPECT_LT(r.reduced_chi2, 2.0);
+
+  // The latched analysis: same model, the effect named, the gap closed.
+  const auto latched =
+      ros::topic::waitForMessage<std_msgs::String>("/calibration/analysis", ros::Duration(30.0));
+  ASSERT_TRUE(latched);
+  const nlohmann::json j = nlohmann::json::parse(latched->data);
+  EXPECT_EQ(j["certificate_model"], r.model);
+  EXPECT_EQ(j["certificate_policy"], "refit");
+  EXPECT_EQ(j["base_model"], "joint");
+  EXPECT_EQ(j["refit_model"], r.model);
+  ASSERT_EQ(j["effects"].size(), 1u) << j["effects"].dump(2);
+  EXPECT_EQ(j["effects"][0]["name"], "quadratic_nonlinearity");
+  EXPECT_EQ(j["effects"][0]["target"], "u");
+  EXPECT_DOUBLE_EQ(j["effects"][0]["value"].get<double>(), r.effect_values[0]);
+  ASSERT_TRUE(j.contains("gap"));
+  std::ifstream file(output_dir + "/analysis.json");
+  ASSERT_TRUE(file.good());
+  EXPECT_EQ(nlohmann::json::parse(file)["certificate_model"], r.model);
+  std::ifstream yaml(output_dir + "/intrinsics.yaml");
+  std::string text((std::istreambuf_iterator<char>(yaml)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("model: joint+quadratic_nonlinearity[u]"), std::string::npos) << text;
+  EXPECT_NE(text.find("quadratic_nonlinearity"), std::string::npos) << text;
+
+  // On demand: the same analysis again, through the service.
+  std_srvs::Trigger analyze;
+  ASSERT_TRUE(ros::service::call("/calibration/analyze", analyze));
+  EXPECT_TRUE(analyze.response.success) << analyze.response.message;
+  EXPECT_NE(analyze.response.message.find("named: quadratic_nonlinearity[u]"), std::string::npos)
+      << analyze.response.message;
+  EXPECT_NE(analyze.response.message.find("certificate: joint+quadratic_nonlinearity[u]"),
+            std::string::npos)
+      << analyze.response.message;
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "analysis_node_test");
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  return RUN_ALL_TESTS();
+}

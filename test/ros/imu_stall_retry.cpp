@@ -1,0 +1,12 @@
+// Fault injection: see test/ros/imu_stall_retry.test and fault_checks.h.
+#include "fault_checks.h"
+
+TEST(FaultInjection, imu_stall_retry) { fault_checks::check_case(); }
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "imu_stall_retry_test");
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  return RUN_ALL_TESTS();
+}
