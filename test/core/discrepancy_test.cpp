@@ -286,44 +286,6 @@ TEST(Discrepancy, JsonHasContractKeysAndCsvHasOneLinePerResidual) {
   EXPECT_EQ(count, 3 * static_cast<int>(table.rows.size()));
 }
 
-// Raw streams -> dwell table (the assembler, in stamp order) -> base fit -> timing-lag screening.
-TimingLagResult screen_recording(const SimulationOptions& so) {
-  const Recording rec = simulate_recording(so);
-  DwellAssembler assembler;
-  std::size_t c = 0, k = 0;
-  while (c < rec.commands.size() || k < rec.samples.size()) {
-    if (k == rec.samples.size() || (c < rec.commands.size() && rec.commands[c].stamp_s <= rec.samples[k].stamp_s)) {
-      assembler.add_command(rec.commands[c++]);
-    } else {
-      assembler.add_sample(rec.samples[k++]);
-    }
-  }
-  assembler.flush();
-  const FitResult base = fit(assembler.table());
-  return screen_timing_lag(rec.commands, rec.samples, base);
-}
-
-TEST(Discrepancy, TimingLagFromRawStreams) {
-  int false_alarms = 0;
-  for (int trial = 0; trial < 4; ++trial) {
-    SimulationOptions so = random_simulation(5150 + static_cast<std::uint64_t>(trial));
-    so.protocol.steps_per_phase = 12;
-    const TimingLagResult clean = screen_recording(so);
-    if (clean.named) ++false_alarms;
-    ASSERT_GT(clean.detection_threshold, 0.0);
-    ASSERT_GT(clean.samples_moving, 0u);
-    const double lag = (trial % 2 == 0 ? 3.0 : 8.0) * clean.detection_threshold;
-    so.truth.effects = {Effect{EffectKind::TimingLag, 0, lag}};
-    so.seed += 1000;
-    const TimingLagResult r = screen_recording(so);
-    SCOPED_TRACE("lag " + std::to_string(lag) + " s, estimated " + std::to_string(r.effect.value) + " +- " +
-                 std::to_string(r.std) + ", p " + std::to_string(r.p_value));
-    EXPECT_TRUE(r.named);
-    EXPECT_EQ(r.effect.label(), "timing_lag[all]");
-    EXPECT_LE(std::abs(r.effect.value - lag), 3.0 * r.std);
-  }
-  EXPECT_LE(false_alarms, 1);
-}
 
 TEST(Discrepancy, DetectionThresholdFromNoncentralChiSquare) {
   // 90 % power of a 5 % two-sided z-test: lambda = (1.95996 + 1.28155)^2 = 10.5074.

@@ -21,7 +21,9 @@ TEST(Protocol, ScheduleVisitsEveryPhaseAndStepInOrder) {
     EXPECT_DOUBLE_EQ(schedule[i].angle_rad, 2 * core::kPi * (i % 8) / 8.0);
     EXPECT_LT(schedule[i].move_start_s, schedule[i].settled_s);
     EXPECT_NEAR(schedule[i].dwell_end_s - schedule[i].settled_s, options.dwell_s, 1e-12);
-    if (i > 0) EXPECT_DOUBLE_EQ(schedule[i].move_start_s, schedule[i - 1].dwell_end_s);
+    if (i > 0) {
+      EXPECT_DOUBLE_EQ(schedule[i].move_start_s, schedule[i - 1].dwell_end_s);
+    }
   }
 }
 

@@ -212,39 +212,7 @@ void write_residuals_csv(const std::string& path, const PositionTable& table,
 void write_residuals_csv(std::ostream& out, const PositionTable& table, const FitResult& before_fit,
                          const FitResult& after_fit);
 
-// ---- timing_lag from raw streams ----------------------------------------------------------------
-// Dwell means cannot show a timing lag (the gimbal is at rest during a dwell); the samples taken
-// while it moves can. The commanded trajectory is rebuilt from the gimbal events (the profile of
-// gimbal_pose_at(), the one the controller and the simulator share), the fitted device is
-// evaluated along it at stamp - lag, and the score test of "lag = 0" uses the derivative of the
-// outputs along the trajectory: T = (sum J r / s^2)^2 / sum J^2 / s^2, J = -dR/dt, with the
-// per-sample noise s of each accelerometer estimated from the samples at rest. The lag is then
-// estimated by a few Gauss-Newton steps. One candidate, so its own family: p ~ chi2(1).
-struct TimingLagOptions {
-  double local_gravity = kStandardGravity;
-  double alpha = 0.025;           // false-alarm rate of this one test
-  int iterations = 4;             // Gauss-Newton steps for the estimate
-  double derivative_step_s = 1e-3;
-  double detection_power = 0.9;
-};
-
-struct TimingLagResult {
-  bool named = false;
-  Effect effect{EffectKind::TimingLag, 0, 0.0};  // value: estimated lag, s (IMU stamps late)
-  double std = 0.0;                  // s
-  double score_chi2 = 0.0;
-  double p_value = 1.0;
-  double detection_threshold = 0.0;  // lag named with probability detection_power, s
-  std::size_t samples_moving = 0;    // samples whose model output changes with the lag
-  std::size_t samples_at_rest = 0;
-  Eigen::Vector3d noise_std = Eigen::Vector3d::Zero();  // per-sample noise, m/s^2
-};
-
-// Throws std::invalid_argument when the events hold no complete move or the samples none at rest.
-TimingLagResult screen_timing_lag(const std::vector<GimbalEvent>& commands,
-                                  const std::vector<ImuSample>& samples, const FitResult& fit,
-                                  const TimingLagOptions& options = {});
-nlohmann::json timing_lag_to_json(const TimingLagResult& result);
+// timing_lag needs raw streams, not dwell means: see estimate_timing_lag() in raw_stream_analysis.h.
 
 // Theoretical detection threshold of a single chi2(1) test with critical value `critical_chi2`:
 // the non-centrality lambda at which the test rejects with probability `power` (Boost.Math
