@@ -193,13 +193,26 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
            options_.output_dir.empty() ? "(none)" : options_.output_dir.c_str(),
            options_.analyze ? ", analysis after the fit" : "",
            options_.resume ? ", resume from the checkpoint" : "");
+  // Last: nothing after this may throw (a joinable std::thread must not be destroyed).
+  analysis_thread_ = std::thread(&CalibrationNode::analysis_loop, this);
 }
 
 CalibrationNode::~CalibrationNode() {
   imu_sub_.shutdown();
   command_sub_.shutdown();
   timer_.stop();
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  {
+    std::lock_guard<std::recursive_mutex> lock(mutex_);
+    ++analysis_generation_;  // a running analysis is discarded when it finishes
+  }
+  {
+    std::lock_guard<std::mutex> lock(job_mutex_);
+    stop_worker_ = true;
+    job_pending_ = false;
+  }
+  job_cv_.notify_all();
+  // Not under mutex_: the worker takes it to check the generation.
+  if (analysis_thread_.joinable()) analysis_thread_.join();
 }
 
 std::string CalibrationNode::csv_path() const {
@@ -582,6 +595,13 @@ void CalibrationNode::reset(const std::string& reason) {
   announced_.clear();
   analysis_json_.clear();
   analysis_error_.clear();
+  // An analysis still running belongs to the discarded run: its result is dropped.
+  ++analysis_generation_;
+  analysis_running_ = false;
+  {
+    std::lock_guard<std::mutex> job_lock(job_mutex_);
+    job_pending_ = false;
+  }
   newest_sample_stamp_s_ = -std::numeric_limits<double>::infinity();
   ++runs_;
   clear_checkpoint();
@@ -772,6 +792,7 @@ std::string CalibrationNode::missing_message() const {
       << " samples)";
   }
   if (done_pending_) s << "; DONE received, fitting after the reorder window";
+  if (analysis_running_) s << "; fitted, the discrepancy analysis is running (result after it)";
   if (request_pending()) s << "; waiting for the gimbal controller to resume";
   if (retries_total_ > 0) s << "; " << retries_total_ << " position(s) measured again";
   const core::AssemblerCounters c = counters();
@@ -807,10 +828,29 @@ bool CalibrationNode::on_reset(std_srvs::Trigger::Request&, std_srvs::Trigger::R
 }
 
 bool CalibrationNode::on_analyze(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  // The analysis runs on a copy of the table without the lock; its result is applied under the
+  // lock unless a reset came meanwhile.
+  core::PositionTable table;
+  bool have_fit = false;
+  core::FitResult base;
+  std::uint64_t generation = 0;
+  {
+    std::lock_guard<std::recursive_mutex> lock(mutex_);
+    table = table_;
+    have_fit = have_fit_;
+    if (have_fit) base = base_fit_;
+    generation = analysis_generation_;
+  }
   try {
-    const core::FitResult base = have_fit_ ? base_fit_ : core::fit(table_, options_.fit);
-    res.message = run_analysis(base, ros::Time::now());
+    if (!have_fit) base = core::fit(table, options_.fit);
+    const core::AnalysisResult analysis = core::analyze(table, analysis_options());
+    std::lock_guard<std::recursive_mutex> lock(mutex_);
+    if (generation != analysis_generation_) {
+      res.success = false;
+      res.message = "analysis discarded: the run was reset or fitted again while it ran";
+      return true;
+    }
+    res.message = apply_analysis(analysis, base, ros::Time::now());
     res.success = true;
   } catch (const std::exception& e) {
     res.success = false;
@@ -831,25 +871,12 @@ void CalibrationNode::run_fit(const ros::Time& now) {
     result_.header.frame_id = options_.frame_id;
     fit_error_.clear();
     if (options_.analyze) {
-      try {
-        const std::string summary = run_analysis(fit, now);
-        ROS_INFO("calibration: analysis: %s", summary.c_str());
-      } catch (const std::exception& e) {
-        analysis_error_ = e.what();
-        ROS_ERROR("calibration: analysis failed: %s", e.what());
-      }
+      // The result goes out when the analysis has finished (it may replace the certificate).
+      start_analysis(now);
+      publish_status(now);
+      return;
     }
-    // run_analysis() replaced result_ when the certificate is the refit model.
-    has_result_ = true;
-    result_pub_.publish(result_);
-    ROS_INFO(
-        "calibration: %s fit of %zu dwells: |u| %.6f |v| %.6f |w| %.6f, angles uv %.4f vw "
-        "%.4f wu %.4f deg, reduced chi2 %.3f",
-        result_.model.c_str(), table.rows.size(), result_.responsivity[0], result_.responsivity[1],
-        result_.responsivity[2], result_.angles_deg[0], result_.angles_deg[1],
-        result_.angles_deg[2], result_.reduced_chi2);
-    write_result_yaml(certificate_fit_, now);
-    write_state();
+    publish_result(now);
   } catch (const std::exception& e) {
     has_result_ = false;
     fit_error_ = e.what();
@@ -858,10 +885,95 @@ void CalibrationNode::run_fit(const ros::Time& now) {
   publish_status(now);
 }
 
-std::string CalibrationNode::run_analysis(const core::FitResult& base, const ros::Time& now) {
+void CalibrationNode::publish_result(const ros::Time& now) {
+  // apply_analysis() replaced result_ when the certificate is the refit model.
+  has_result_ = true;
+  result_pub_.publish(result_);
+  ROS_INFO(
+      "calibration: %s fit of %zu dwells: |u| %.6f |v| %.6f |w| %.6f, angles uv %.4f vw "
+      "%.4f wu %.4f deg, reduced chi2 %.3f",
+      result_.model.c_str(), table_.rows.size(), result_.responsivity[0], result_.responsivity[1],
+      result_.responsivity[2], result_.angles_deg[0], result_.angles_deg[1],
+      result_.angles_deg[2], result_.reduced_chi2);
+  write_result_yaml(certificate_fit_, now);
+  write_state();
+}
+
+core::AnalysisOptions CalibrationNode::analysis_options() const {
   core::AnalysisOptions options = options_.analysis;
   options.local_gravity = options_.fit.local_gravity;
-  const core::AnalysisResult analysis = core::analyze(table_, options);
+  return options;
+}
+
+void CalibrationNode::start_analysis(const ros::Time& now) {
+  // Under mutex_ (lock order: mutex_, then job_mutex_). A newer fit supersedes an analysis
+  // still running for an older one.
+  ++analysis_generation_;
+  analysis_running_ = true;
+  {
+    std::lock_guard<std::mutex> lock(job_mutex_);
+    job_.generation = analysis_generation_;
+    job_.table = table_;
+    job_.base = base_fit_;
+    job_.stamp = now;
+    job_pending_ = true;  // replaces a job not yet started (same run or a discarded one)
+  }
+  job_cv_.notify_one();
+  ROS_INFO("calibration: fit done; discrepancy analysis of %zu dwells running, the result "
+           "follows it",
+           table_.rows.size());
+}
+
+void CalibrationNode::analysis_loop() {
+  for (;;) {
+    AnalysisJob job;
+    {
+      std::unique_lock<std::mutex> lock(job_mutex_);
+      job_cv_.wait(lock, [this] { return stop_worker_ || job_pending_; });
+      if (stop_worker_) return;
+      job = std::move(job_);
+      job_pending_ = false;
+    }
+    // Without the lock: IMU handling, commands and services go on meanwhile.
+    std::unique_ptr<core::AnalysisResult> analysis;
+    std::string error;
+    try {
+      analysis.reset(new core::AnalysisResult(core::analyze(job.table, analysis_options())));
+    } catch (const std::exception& e) {
+      error = e.what();
+    } catch (...) {
+      error = "unknown exception";
+    }
+    std::lock_guard<std::recursive_mutex> lock(mutex_);
+    if (job.generation != analysis_generation_) {
+      ROS_INFO("calibration: the analysis of a reset or superseded run finished; dropped");
+      continue;
+    }
+    analysis_running_ = false;
+    if (analysis) {
+      try {
+        const std::string summary = apply_analysis(*analysis, job.base, job.stamp);
+        ROS_INFO("calibration: analysis: %s", summary.c_str());
+      } catch (const std::exception& e) {
+        error = e.what();
+      }
+    }
+    if (!error.empty()) {
+      analysis_error_ = error;
+      ROS_ERROR("calibration: analysis failed: %s", error.c_str());
+    }
+    if (!fault_.empty() || request_pending()) {
+      // A watchdog fired after the fit: no certificate from this one.
+      ROS_WARN("calibration: a fault came while the analysis ran; its fit is not published");
+    } else {
+      publish_result(job.stamp);
+    }
+    publish_status(job.stamp);
+  }
+}
+
+std::string CalibrationNode::apply_analysis(const core::AnalysisResult& analysis,
+                                            const core::FitResult& base, const ros::Time& now) {
   nlohmann::json j = core::analysis_to_json(analysis);
   const bool refit = options_.certificate_refit && !analysis.effects.empty();
   certificate_fit_ = refit ? analysis.after_fit : base;
@@ -1002,7 +1114,7 @@ void CalibrationNode::publish_status(const ros::Time& now) {
                       : !fault_.empty() || !controller_abort_.empty() ? "ABORTED"
                       : request_pending()   ? "RESUMING"
                       : !fit_error_.empty() ? "FAILED"
-                      : done_pending_       ? "FITTING"
+                      : done_pending_ || analysis_running_ ? "FITTING"
                       : commands_received_  ? "COLLECTING"
                                             : "WAITING";
   msg.level = fit_error_.empty() && fault_.empty() ? diagnostic_msgs::DiagnosticStatus::OK

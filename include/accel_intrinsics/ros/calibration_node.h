@@ -8,6 +8,9 @@
 //    the fit; the JSON goes to the latched calibration/analysis (std_msgs/String) and to
 //    analysis.json. The certificate (calibration/result) stays the base fit unless
 //    ~certificate_model is "refit"; its `model` field always names the model it holds.
+//    After a fit the analysis runs on a worker thread, off the node's lock (IMU handling never
+//    waits for it); the result (certificate, YAML, state) goes out when it finishes. A reset
+//    meanwhile discards it (generation counter).
 //  - resume: the node's own position table (rows accepted so far, in protocol order) and a small
 //    state file (time origin, N, done, fault) are checkpointed in output_dir; with ~resume a
 //    restarted node reloads them and asks the gimbal controller to continue after the last
@@ -29,12 +32,14 @@
 #include <diagnostic_updater/diagnostic_updater.h>
 
 #include <array>
+#include <condition_variable>
 #include <fstream>
 #include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <thread>
 #include <tuple>
 #include <vector>
 
@@ -87,7 +92,8 @@ struct CalibrationOptions {
 class CalibrationNode {
  public:
   CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh, const CalibrationOptions& options);
-  // Stops the subscriptions and waits for a handler still running on the network thread.
+  // Stops the subscriptions, waits for a handler still running on the network thread, and joins
+  // the analysis worker (a running analysis is finished and discarded).
   ~CalibrationNode();
 
   // Message handlers (the subscribers call them; tests and benchmarks may too).
@@ -121,8 +127,25 @@ class CalibrationNode {
   bool on_analyze(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   void on_dwell(const core::DwellRecord& row);
   void run_fit(const ros::Time& now);
-  // Runs the analysis on table_ and publishes it; returns a one-line summary (throws on failure).
-  std::string run_analysis(const core::FitResult& base, const ros::Time& now);
+  // Publishes result_ (the certificate), writes the result YAML and the state (after the fit, or
+  // after the analysis that follows it).
+  void publish_result(const ros::Time& now);
+  // The options core::analyze() runs with.
+  core::AnalysisOptions analysis_options() const;
+  // Publishes an analysis of table_ (latched topic, analysis.json) and sets the certificate by
+  // the policy; returns a one-line summary. Under the lock; the analysis itself ran without it.
+  std::string apply_analysis(const core::AnalysisResult& analysis, const core::FitResult& base,
+                             const ros::Time& now);
+  // Analysis worker: run_fit() hands it a copy of the table; it analyzes without the lock, then
+  // applies the result under the lock unless a reset bumped the generation meanwhile.
+  struct AnalysisJob {
+    std::uint64_t generation = 0;
+    core::PositionTable table;
+    core::FitResult base;
+    ros::Time stamp;
+  };
+  void start_analysis(const ros::Time& now);
+  void analysis_loop();
 
   // Checkpoint.
   void load_checkpoint();
@@ -195,6 +218,15 @@ class CalibrationNode {
   core::FitResult certificate_fit_;  // base_fit_, or the refit with named effects
   std::string analysis_json_;
   std::string analysis_error_;
+  // Bumped by reset() and by each new analysis: a running analysis of an older one is discarded.
+  std::uint64_t analysis_generation_ = 0;
+  bool analysis_running_ = false;          // fit done, the result waits for the worker
+  std::mutex job_mutex_;                   // job_, job_pending_, stop_worker_ (after mutex_)
+  std::condition_variable job_cv_;
+  AnalysisJob job_;
+  bool job_pending_ = false;
+  bool stop_worker_ = false;
+  std::thread analysis_thread_;            // started last in the constructor
   // Counters of assemblers restarted after a fault, added to the current one's for reports.
   core::AssemblerCounters counters_before_;
   core::AssemblerCounters counters() const;
