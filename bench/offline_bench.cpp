@@ -7,7 +7,8 @@
 // 1. Writes PATH (default /tmp/accel_intrinsics_bench_1M.bag, reused when it already holds N IMU
 //    messages at that rate): core::simulate_recording of a 24-position protocol at F Hz (default
 //    1 kHz, a common MEMS output rate) with dwells long enough for N samples, plus the gimbal
-//    commands. Real-time replay of it takes N / F seconds.
+//    commands. Real-time replay of it takes N / F seconds. N must hold the full protocol with
+//    0.5 s dwells (156 001 at 1 kHz); fewer is refused with a message naming the minimum.
 // 2. Runs the built offline_fit binary on it R times (wall time; best and median).
 // 3. Times `/usr/bin/python3`: `for _ in rosbag.Bag(PATH).read_messages(): pass`, once.
 // 4. Prints `name: value unit` lines: times, messages per second, the ratio to the Python loop and
@@ -101,23 +102,44 @@ BagInfo inspect(const std::string& path) {
   return info;
 }
 
-// The 24-position protocol at an IMU rate of `rate_hz`, with the dwell time that makes the run
-// `messages` samples long (1 M at 1 kHz: 12.2 s dwells, 16.7 min), stamps from t = 1000 s, bag
-// time = stamp.
-void write_bag(const std::string& path, std::uint64_t messages, double rate_hz) {
+// The benchmark's simulated stand: the default 24-position protocol at `rate_hz`.
+core::SimulationOptions bench_simulation(double rate_hz) {
   core::SimulationOptions sim;
   sim.truth.S << 1.02, 0.01, -0.005, 0.003, 0.98, 0.02, -0.01, 0.015, 1.005;
   sim.truth.O = Eigen::Vector3d(0.05, -0.03, 0.12);
   sim.rate_hz = rate_hz;
-  auto run_length = [&sim](double dwell_s) {
-    core::ProtocolOptions p = sim.protocol;
-    p.dwell_s = dwell_s;
-    return core::build_schedule(p).back().dwell_end_s;
-  };
+  return sim;
+}
+
+// Seconds from the start of the run to the end of its last dwell with dwells of `dwell_s`.
+double run_length(const core::SimulationOptions& sim, double dwell_s) {
+  core::ProtocolOptions p = sim.protocol;
+  p.dwell_s = dwell_s;
+  return core::build_schedule(p).back().dwell_end_s;
+}
+
+// The shortest dwell write_bag uses, and the fewest IMU messages a full protocol with it needs
+// at `rate_hz` (fewer would cut the run short of DONE: not a run offline_fit can fit).
+constexpr double kMinDwellS = 0.5;
+std::uint64_t min_messages(double rate_hz) {
+  return static_cast<std::uint64_t>(std::ceil(run_length(bench_simulation(rate_hz), kMinDwellS) * rate_hz)) + 1;
+}
+
+// The 24-position protocol at an IMU rate of `rate_hz`, with the dwell time that makes the run
+// `messages` samples long (1 M at 1 kHz: 12.2 s dwells, 16.7 min), stamps from t = 1000 s, bag
+// time = stamp. `messages` >= min_messages(rate_hz) (main refuses fewer).
+void write_bag(const std::string& path, std::uint64_t messages, double rate_hz) {
+  core::SimulationOptions sim = bench_simulation(rate_hz);
   const double target_s = static_cast<double>(messages - 1) / rate_hz;
-  const double per_second_of_dwell = run_length(2.0) - run_length(1.0);
-  sim.protocol.dwell_s = std::max(0.5, 1.0 + (target_s - run_length(1.0)) / per_second_of_dwell);
+  const double per_second_of_dwell = run_length(sim, 2.0) - run_length(sim, 1.0);
+  sim.protocol.dwell_s = std::max(kMinDwellS, 1.0 + (target_s - run_length(sim, 1.0)) / per_second_of_dwell);
   core::Recording rec = core::simulate_recording(sim);
+  if (rec.samples.size() > messages && !rec.commands.empty() &&
+      rec.samples[messages - 1].stamp_s < rec.commands.back().stamp_s) {
+    std::fprintf(stderr, "offline_bench: %llu messages end before the protocol's DONE\n",
+                 static_cast<unsigned long long>(messages));
+    std::exit(2);
+  }
   rec.samples.resize(std::min<std::size_t>(rec.samples.size(), messages));
   while (rec.samples.size() < messages) {  // pad after DONE, as a recorder would
     core::ImuSample s = rec.samples.back();
@@ -210,6 +232,22 @@ int main(int argc, char** argv) {
     else if (a == "--runs" && i + 1 < argc) runs = std::max(1, std::atoi(argv[++i]));
     else if (a == "--no-python") python = false;
     else rest.push_back(argv[i]);
+  }
+
+  if (!(rate_hz > 0.0) || !std::isfinite(rate_hz)) {
+    std::fprintf(stderr, "offline_bench: --rate-hz must be a positive number\n");
+    return 2;
+  }
+  // Too few messages cannot hold the full protocol (24 positions, dwells >= 0.5 s): refuse rather
+  // than write a run cut short of DONE and time something that is not a calibration.
+  const std::uint64_t fewest = min_messages(rate_hz);
+  if (messages < fewest) {
+    std::fprintf(stderr,
+                 "offline_bench: --messages %llu is too small for a full protocol at %g Hz (24 positions with "
+                 "%.1f s dwells need at least %llu IMU messages); use --messages %llu or more\n",
+                 static_cast<unsigned long long>(messages), rate_hz, kMinDwellS,
+                 static_cast<unsigned long long>(fewest), static_cast<unsigned long long>(fewest));
+    return 2;
   }
 
   BagInfo info = inspect(g_bag);

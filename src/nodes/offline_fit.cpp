@@ -3,7 +3,11 @@
 //
 //   offline_fit (--bag FILE | --csv FILE) [--imu-topic T] [--command-topic T] [--gravity G]
 //               [--model joint|eq4] [--analyze] [--json OUT] [--csv-out FILE]
+//               [--settle-discard SECONDS]
 //
+// --settle-discard (optional, default 0: the old behaviour) drops the samples of the first
+// SECONDS of each dwell (after SETTLED), as the calibration node's settle_discard_s does: for a
+// gimbal that still rings when it reports settled. Bags only.
 // The bag goes through core::DwellAssembler, the dwell assignment of the calibration node, so
 // the result equals the online one for the same messages. Exit status: 0 success, 1 bad input or
 // failed fit, 2 bad command line; every failure prints exactly one line "offline_fit: error: ..."
@@ -68,8 +72,10 @@ struct Arguments {
   bool analyze = false;
   std::string json_out;
   std::string csv_out;
+  double settle_discard_s = 0.0;
   bool imu_topic_given = false;
   bool command_topic_given = false;
+  bool settle_discard_given = false;
 };
 
 // What was read, whatever the source.
@@ -125,6 +131,7 @@ Input read_bag_input(const Arguments& args) {
   ai::BagInputOptions options;
   options.imu_topic = args.imu_topic;
   options.command_topic = args.command_topic;
+  options.assembler.settle_discard_s = args.settle_discard_s;
   options.progress_stream = &std::cerr;
   options.progress_label = std::string(kProgram) + ": reading " + args.bag;
 
@@ -159,6 +166,7 @@ Input read_bag_input(const Arguments& args) {
       {"dwells", input.table.rows.size()},
       {"samples_used", c.samples_used},
       {"dropped_outside_dwell", c.dropped_outside_dwell},
+      {"settle_discard_s", args.settle_discard_s},
       {"dropped_settle_discard", c.dropped_settle_discard},
       {"dropped_non_finite", c.dropped_non_finite},
       {"dropped_backwards", c.dropped_backwards},
@@ -322,6 +330,14 @@ int run(const Arguments& args) {
   if (!args.csv.empty() && (args.imu_topic_given || args.command_topic_given)) {
     throw Failure{2, "--imu-topic and --command-topic apply to --bag only"};
   }
+  if (!args.csv.empty() && args.settle_discard_given) {
+    throw Failure{2, "--settle-discard applies to --bag only (a position table's dwells are already averaged)"};
+  }
+  if (!std::isfinite(args.settle_discard_s) || args.settle_discard_s < 0.0) {
+    std::ostringstream s;
+    s << "--settle-discard " << args.settle_discard_s << " must be a number of seconds >= 0";
+    throw Failure{2, s.str()};
+  }
   if (!std::isfinite(args.gravity) || args.gravity <= kMinGravity || args.gravity >= kMaxGravity) {
     std::ostringstream s;
     s << "--gravity " << args.gravity << " is not a local gravity in m/s^2 (must be in (" << kMinGravity << ", "
@@ -414,6 +430,11 @@ int main(int argc, char** argv) {
   app.add_flag("--analyze", args.analyze, "also run the discrepancy analysis (missing effects)");
   app.add_option("--json", args.json_out, "write the result as JSON to this file ('-': stdout)");
   app.add_option("--csv-out", args.csv_out, "write the position table (dwell means) as CSV");
+  auto* settle_opt = app.add_option("--settle-discard", args.settle_discard_s,
+                                    "bag only: drop the samples of the first SECONDS of each dwell (after the "
+                                    "gimbal reports SETTLED), like the calibration node's settle_discard_s")
+                         ->type_name("SECONDS")
+                         ->capture_default_str();
 
   try {
     app.parse(argc, argv);
@@ -427,6 +448,7 @@ int main(int argc, char** argv) {
   }
   args.imu_topic_given = imu_opt->count() > 0;
   args.command_topic_given = cmd_opt->count() > 0;
+  args.settle_discard_given = settle_opt->count() > 0;
 
   // rosbag and cpp_common log parse errors through console_bridge; the exception they throw
   // carries the same news and becomes our one line on stderr.

@@ -7,6 +7,7 @@
 #include <sensor_msgs/Imu.h>
 #include <fcntl.h>
 #include <rosbag/constants.h>
+#include <rosbag/stream.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -21,6 +22,7 @@
 #include <memory>
 #include <ostream>
 #include <sstream>
+#include <unordered_map>
 
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/ros/conversions.h"
@@ -127,9 +129,19 @@ void check_readable_file(const std::string& path) {
 }
 
 std::string truncation_hint(const std::string& path);
+void check_structure(const std::string& path);
 
 void open_bag(rosbag::Bag& bag, const std::string& path) {
   check_readable_file(path);
+  // rosbag trusts the lengths, offsets and counts it reads (a corrupt length makes it allocate
+  // gigabytes, a corrupt index offset makes it read outside its buffer): it only gets bags whose
+  // structure check_structure() has walked.
+  try {
+    check_structure(path);
+  } catch (const BagInputError& e) {
+    const std::string hint = truncation_hint(path);  // a cut-off file says so first
+    throw BagInputError("cannot read bag '" + path + "': " + (hint.empty() ? one_line(e.what()) : hint));
+  }
   try {
     bag.open(path, rosbag::bagmode::Read);
   } catch (const rosbag::BagUnindexedException&) {
@@ -253,6 +265,30 @@ struct RecordFields {
   std::uint64_t index_pos = 0;
   bool encrypted = false;
   std::string topic;
+  // For the structure check ahead of rosbag (check_structure): chunk sizes, index counts.
+  std::uint32_t size = 0;
+  std::uint32_t count = 0;
+  std::uint32_t ver = 0;
+  std::uint32_t conn_count = 0;
+  std::uint32_t chunk_count = 0;
+  std::uint64_t chunk_pos = 0;
+  unsigned seen = 0;  // kHas* bits of the fields present
+};
+
+enum : unsigned {
+  kHasConn = 1u << 0,
+  kHasTime = 1u << 1,
+  kHasSize = 1u << 2,
+  kHasCount = 1u << 3,
+  kHasVer = 1u << 4,
+  kHasConnCount = 1u << 5,
+  kHasChunkCount = 1u << 6,
+  kHasChunkPos = 1u << 7,
+  kHasIndexPos = 1u << 8,
+  kHasTopic = 1u << 9,
+  kHasCompression = 1u << 10,
+  kHasStartTime = 1u << 11,
+  kHasEndTime = 1u << 12,
 };
 
 bool field_is(const std::uint8_t* name, std::size_t name_len, const char* wanted) {
@@ -283,25 +319,54 @@ RecordFields parse_fields(const std::uint8_t* p, std::uint32_t len, std::size_t 
   RecordFields f;
   for_each_field(p, len, offset, [&f](const std::uint8_t* field, std::size_t name_len, const std::uint8_t* value,
                                       std::size_t value_len, std::size_t at) {
+    auto u32 = [&](const char* name, unsigned bit, std::uint32_t* out) {
+      if (value_len != 4) corrupt(at, std::string("bad ") + name + " field");
+      *out = read_u32(value);
+      f.seen |= bit;
+    };
+    auto u64 = [&](const char* name, unsigned bit, std::uint64_t* out) {
+      if (value_len != 8) corrupt(at, std::string("bad ") + name + " field");
+      std::memcpy(out, value, 8);
+      f.seen |= bit;
+    };
     if (field_is(field, name_len, "op")) {
       if (value_len != 1) corrupt(at, "bad op field");
       f.op = value[0];
     } else if (field_is(field, name_len, "conn")) {
-      if (value_len != 4) corrupt(at, "bad conn field");
-      f.conn = read_u32(value);
+      u32("conn", kHasConn, &f.conn);
     } else if (field_is(field, name_len, "time")) {
       if (value_len != 8) corrupt(at, "bad time field");
       f.time.sec = read_u32(value);
       f.time.nsec = read_u32(value + 4);
+      f.seen |= kHasTime;
     } else if (field_is(field, name_len, "compression")) {
       f.compression.assign(reinterpret_cast<const char*>(value), value_len);
+      f.seen |= kHasCompression;
     } else if (field_is(field, name_len, "index_pos")) {
-      if (value_len != 8) corrupt(at, "bad index_pos field");
-      std::memcpy(&f.index_pos, value, 8);
+      u64("index_pos", kHasIndexPos, &f.index_pos);
     } else if (field_is(field, name_len, "encryptor")) {
       f.encrypted = value_len > 0;
     } else if (field_is(field, name_len, "topic")) {
       f.topic.assign(reinterpret_cast<const char*>(value), value_len);
+      f.seen |= kHasTopic;
+    } else if (field_is(field, name_len, "size")) {
+      u32("size", kHasSize, &f.size);
+    } else if (field_is(field, name_len, "count")) {
+      u32("count", kHasCount, &f.count);
+    } else if (field_is(field, name_len, "ver")) {
+      u32("ver", kHasVer, &f.ver);
+    } else if (field_is(field, name_len, "conn_count")) {
+      u32("conn_count", kHasConnCount, &f.conn_count);
+    } else if (field_is(field, name_len, "chunk_count")) {
+      u32("chunk_count", kHasChunkCount, &f.chunk_count);
+    } else if (field_is(field, name_len, "chunk_pos")) {
+      u64("chunk_pos", kHasChunkPos, &f.chunk_pos);
+    } else if (field_is(field, name_len, "start_time")) {
+      if (value_len != 8) corrupt(at, "bad start_time field");
+      f.seen |= kHasStartTime;
+    } else if (field_is(field, name_len, "end_time")) {
+      if (value_len != 8) corrupt(at, "bad end_time field");
+      f.seen |= kHasEndTime;
     }
   });
   return f;
@@ -482,6 +547,155 @@ class ChunkScanner {
   std::map<std::uint32_t, ScanConnection> connections_;
   std::map<std::uint32_t, std::uint64_t> message_counts_;
 };
+
+// ---- Structure check ahead of rosbag ------------------------------------------------------
+// rosbag::Bag reads the file header, seeks to index_pos, reads conn_count connection records and
+// chunk_count chunk info records, then at each chunk_pos the chunk header and the index records
+// after the chunk; View then loads (decompresses) chunks and reads the message record at each
+// indexed offset. None of that checks a length against the file or an offset against the chunk.
+// This walks the same records first and throws BagInputError ("corrupt bag: ... at byte N")
+// unless every one of them is where rosbag will look and lies inside the file (or inside its
+// decompressed chunk). Compressed chunks are decompressed here with rosbag's own decompressors,
+// so a compressed bag is decompressed twice on the rosbag path. Bags that rosbag rejects by itself
+// with a clear message before reading past the file header (unindexed: index_pos 0; cut short
+// before the index) are left to it. Only format 2.0 is accepted (1.2 predates ROS 1 Diamondback).
+
+// A chunk may claim at most this many bytes uncompressed (rosbag allocates them up front).
+constexpr std::uint64_t kMaxChunkBytes = std::uint64_t{1} << 30;
+// ... and at most this ratio to its compressed size (plus 1 MiB): far beyond what bz2 or lz4 do
+// on message data, far below what a corrupt size field claims.
+constexpr std::uint64_t kMaxCompressionRatio = 4096;
+
+void require(bool ok, std::size_t offset, const std::string& what) {
+  if (!ok) corrupt(offset, what);
+}
+
+// The data of chunk record `chunk` (at file offset `offset`), decompressed when it is compressed.
+const std::uint8_t* chunk_content(const Record& chunk, std::size_t offset, std::vector<std::uint8_t>* buffer,
+                                  std::size_t* length) {
+  const std::string& compression = chunk.fields.compression;
+  require((chunk.fields.seen & kHasCompression) && (chunk.fields.seen & kHasSize), offset,
+          "chunk header without compression or size");
+  if (compression == rosbag::COMPRESSION_NONE) {
+    require(chunk.fields.size == chunk.data_len, offset, "uncompressed chunk whose size differs from its length");
+    *length = chunk.data_len;
+    return chunk.data;
+  }
+  require(compression == rosbag::COMPRESSION_BZ2 || compression == rosbag::COMPRESSION_LZ4, offset,
+          "unknown chunk compression '" + compression + "'");
+  const std::uint64_t size = chunk.fields.size;
+  require(size <= kMaxChunkBytes && size <= kMaxCompressionRatio * chunk.data_len + (1u << 20), offset,
+          "chunk claims " + std::to_string(size) + " bytes uncompressed from " + std::to_string(chunk.data_len));
+  // 0xff: bytes the decompressor did not write read as a record length past the end.
+  buffer->assign(static_cast<std::size_t>(size), 0xff);
+  try {
+    std::unique_ptr<rosbag::Stream> stream;
+    if (compression == rosbag::COMPRESSION_BZ2) stream.reset(new rosbag::BZ2Stream(nullptr));
+    else stream.reset(new rosbag::LZ4Stream(nullptr));
+    if (size > 0) {
+      stream->decompress(buffer->data(), static_cast<unsigned int>(size), const_cast<std::uint8_t*>(chunk.data),
+                         chunk.data_len);
+    }
+  } catch (const std::exception& e) {
+    corrupt(offset, "chunk does not decompress (" + one_line(e.what()) + ")");
+  }
+  *length = buffer->size();
+  return buffer->data();
+}
+
+void check_structure(const std::string& path) {
+  MappedFile file(path);
+  const std::uint8_t* base = file.data();
+  const std::size_t size = file.size();
+  if (size < kVersionLength || std::memcmp(base, kVersionLine, kVersionLength) != 0) {
+    throw BagInputError("not a ROS bag (format 2.0): the file does not start with '#ROSBAG V2.0'");
+  }
+  const Record header = read_record(base, size, kVersionLength);
+  require(header.fields.op == rosbag::OP_FILE_HEADER, kVersionLength, "first record is not a file header");
+  if (header.fields.encrypted) {
+    throw BagInputError("the bag is encrypted; decrypt a copy first ('rosbag decrypt')");
+  }
+  const std::uint64_t index_pos = header.fields.index_pos;
+  if (index_pos == 0 || index_pos > size) return;  // unindexed or cut short: rosbag says so
+  require((header.fields.seen & kHasConnCount) && (header.fields.seen & kHasChunkCount), kVersionLength,
+          "file header without conn_count or chunk_count");
+  require(index_pos >= header.end, kVersionLength, "index_pos inside the file header");
+
+  // Chunks, each followed by its index records, up to index_pos. Per chunk: the offsets of its
+  // message records with their connection, and how many index records follow it.
+  std::map<std::size_t, std::uint32_t> index_records_after_chunk;
+  std::unordered_map<std::uint32_t, std::uint32_t> messages_at;  // offset in chunk -> conn, last chunk
+  std::vector<std::uint8_t> buffer;
+  std::size_t last_chunk = 0;
+  bool have_chunk = false;
+  std::size_t pos = header.end;
+  while (pos < index_pos) {
+    const Record r = read_record(base, index_pos, pos);
+    if (r.fields.op == rosbag::OP_CHUNK) {
+      std::size_t length = 0;
+      const std::uint8_t* content = chunk_content(r, pos, &buffer, &length);
+      messages_at.clear();
+      std::size_t inner = 0;
+      while (inner < length) {
+        const Record m = read_record(content, length, inner);
+        if (m.fields.op == rosbag::OP_MSG_DATA) {
+          require((m.fields.seen & kHasConn) && (m.fields.seen & kHasTime), pos,
+                  "message record without conn or time in the chunk");
+          messages_at[static_cast<std::uint32_t>(inner)] = m.fields.conn;
+        } else {
+          require(m.fields.op == rosbag::OP_CONNECTION, pos,
+                  "unexpected record (op " + std::to_string(m.fields.op) + ") in the chunk");
+        }
+        inner = m.end;
+      }
+      last_chunk = pos;
+      have_chunk = true;
+      index_records_after_chunk[pos] = 0;
+    } else if (r.fields.op == rosbag::OP_INDEX_DATA) {
+      require(have_chunk, pos, "index record before any chunk");
+      require((r.fields.seen & kHasVer) && r.fields.ver == 1 && (r.fields.seen & kHasConn) &&
+                  (r.fields.seen & kHasCount),
+              pos, "index record without version 1, conn or count");
+      require(static_cast<std::uint64_t>(r.fields.count) * 12 == r.data_len, pos,
+              "index record whose count does not match its length");
+      for (std::uint32_t i = 0; i < r.fields.count; ++i) {
+        const std::uint32_t offset = read_u32(r.data + 12 * i + 8);
+        const auto found = messages_at.find(offset);
+        require(found != messages_at.end() && found->second == r.fields.conn, pos,
+                "index entry pointing at no message of its connection");
+      }
+      ++index_records_after_chunk[last_chunk];
+    } else {
+      corrupt(pos, "unexpected record (op " + std::to_string(r.fields.op) + ") before the index");
+    }
+    pos = r.end;
+  }
+
+  // The index section: conn_count connection records, then chunk_count chunk info records.
+  pos = static_cast<std::size_t>(index_pos);
+  for (std::uint32_t i = 0; i < header.fields.conn_count; ++i) {
+    require(pos < size, pos, "fewer connection records than the file header's conn_count");
+    const Record r = read_record(base, size, pos);
+    require(r.fields.op == rosbag::OP_CONNECTION && (r.fields.seen & kHasConn) && (r.fields.seen & kHasTopic), pos,
+            "expected a connection record with conn and topic");
+    for_each_field(r.data, r.data_len, pos, [](const std::uint8_t*, std::size_t, const std::uint8_t*, std::size_t,
+                                               std::size_t) {});
+    pos = r.end;
+  }
+  for (std::uint32_t i = 0; i < header.fields.chunk_count; ++i) {
+    require(pos < size, pos, "fewer chunk info records than the file header's chunk_count");
+    const Record r = read_record(base, size, pos);
+    const unsigned needed = kHasVer | kHasChunkPos | kHasStartTime | kHasEndTime | kHasCount;
+    require(r.fields.op == rosbag::OP_CHUNK_INFO && (r.fields.seen & needed) == needed && r.fields.ver == 1, pos,
+            "expected a chunk info record (version 1, chunk_pos, start_time, end_time, count)");
+    require(static_cast<std::uint64_t>(r.fields.count) * 8 == r.data_len, pos,
+            "chunk info whose count does not match its length");
+    const auto chunk = index_records_after_chunk.find(static_cast<std::size_t>(r.fields.chunk_pos));
+    require(chunk != index_records_after_chunk.end(), pos, "chunk info pointing at no chunk");
+    require(chunk->second == r.fields.count, pos, "chunk info whose connection count differs from the chunk's index");
+    pos = r.end;
+  }
+}
 
 // Why rosbag could not open a bag, when the file header says so: a file cut short before its
 // index (a copy interrupted, a disk filled up). Empty when that is not the explanation.

@@ -4,6 +4,8 @@
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
 
+#include <cstdio>
+#include <cstdlib>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -64,6 +66,11 @@ TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
     const std::string online_csv = oc::read_file(online_dir + "/position_table.csv");
     ASSERT_FALSE(online_csv.empty());
     EXPECT_EQ(online_csv, oc::read_file(csv_path));
+  }
+  // Passed: remove this run's files (kept on failure, to look at).
+  if (!HasFailure() && std::getenv("KEEP_TEST_FILES") == nullptr) {
+    for (const std::string& path : {bag, json_path, csv_path, bag + ".err"}) std::remove(path.c_str());
+    if (!online_dir.empty()) std::system(("rm -rf '" + online_dir + "'").c_str());
   }
 }
 

@@ -7,6 +7,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -58,9 +61,16 @@ void write_simulated_bag(const std::string& path) {
 
 TEST(ReplayThroughNode, ReplayLaunchGivesOfflineResult) {
   ros::NodeHandle pnh("~");
-  std::string bag;
+  std::string bag, temp_dir;
   double rate = 4.0, timeout_s = 150.0;
-  ASSERT_TRUE(pnh.getParam("bag", bag));
+  if (!pnh.getParam("bag", bag)) {
+    // A directory of this run's own: parallel or repeated runs never share a bag.
+    const char* tmp = std::getenv("TMPDIR");
+    std::string templ = std::string(tmp && *tmp ? tmp : "/tmp") + "/accel_intrinsics_replay_through_node_XXXXXX";
+    ASSERT_NE(::mkdtemp(&templ[0]), nullptr) << templ << ": " << std::strerror(errno);
+    temp_dir = templ;
+    bag = temp_dir + "/run.bag";
+  }
   pnh.getParam("rate", rate);
   pnh.getParam("timeout_s", timeout_s);
   write_simulated_bag(bag);
@@ -93,6 +103,10 @@ TEST(ReplayThroughNode, ReplayLaunchGivesOfflineResult) {
   }
   ASSERT_TRUE(ok) << "no result from the replay: " << message;
   oc::expect_equal(online, j);
+  // Passed: remove the directory (kept on failure, to look at).
+  if (!temp_dir.empty() && !HasFailure() && std::getenv("KEEP_TEST_FILES") == nullptr) {
+    std::system(("rm -rf '" + temp_dir + "'").c_str());
+  }
 }
 
 int main(int argc, char** argv) {

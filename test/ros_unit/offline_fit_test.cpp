@@ -537,6 +537,56 @@ TEST(OfflineFit, TwoNamespacesNeedAChoice) {
   EXPECT_EQ(load_json(dir.file("t.json"))["input"]["imu_topic"], "/stand1/imu/data_raw");
 }
 
+// --settle-discard S drops the samples of the first S seconds after each SETTLED stamp. In the
+// hand-made run the kept samples sit at SETTLED + 0, 0.1, 0.2, 0.3, 0.4 s: with S = 0.25 the
+// first three of each dwell go, n = 2, and the means are those of the last two samples.
+TEST(OfflineFit, SettleDiscardDropsTheFirstSecondsOfEachDwell) {
+  TempDir dir;
+  const HandRun run = make_hand_bag(dir.file("run.bag"));
+  const ToolRun r = run_tool({"--bag", dir.file("run.bag"), "--settle-discard", "0.25", "--csv-out",
+                              dir.file("table.csv"), "--json", dir.file("result.json")},
+                             dir);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const core::PositionTable table = core::read_position_table_file(dir.file("table.csv"));
+  ASSERT_EQ(table.rows.size(), run.dwells.size());
+  for (std::size_t i = 0; i < run.dwells.size(); ++i) {
+    const HandDwell& d = run.dwells[i];
+    const core::DwellRecord& row = table.rows[i];
+    EXPECT_EQ(row.n, 2u) << i;
+    const Eigen::Vector3d mean = (d.samples[3] + d.samples[4]) / 2.0;
+    const Eigen::Vector3d std = (d.samples[3] - d.samples[4]).cwiseAbs() / std::sqrt(2.0);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(row.mean(k), mean(k), 1e-12) << "row " << i << " axis " << k;
+      EXPECT_NEAR(row.std(k), std(k), 1e-12) << "row " << i << " axis " << k;
+    }
+  }
+  const json j = load_json(dir.file("result.json"));
+  EXPECT_EQ(j["input"]["settle_discard_s"].get<double>(), 0.25);
+  EXPECT_EQ(j["input"]["samples_used"].get<std::uint64_t>(), 2u * run.dwells.size());
+  EXPECT_EQ(j["input"]["dropped_settle_discard"].get<std::uint64_t>(), 3u * run.dwells.size());
+  EXPECT_EQ(j["input"]["dropped_outside_dwell"].get<std::uint64_t>(), run.dropped_outside);
+
+  // 0 (the default, spelled out) is the old behaviour: all five samples.
+  const ToolRun zero = run_tool({"--bag", dir.file("run.bag"), "--settle-discard", "0", "--json",
+                                 dir.file("zero.json")},
+                                dir);
+  ASSERT_EQ(zero.status, 0) << zero.err;
+  const json z = load_json(dir.file("zero.json"));
+  EXPECT_EQ(z["input"]["samples_used"].get<std::uint64_t>(), 5u * run.dwells.size());
+  EXPECT_EQ(z["input"]["dropped_settle_discard"].get<std::uint64_t>(), 0u);
+
+  // Refused: negative, not a number, with --csv.
+  ToolRun bad = run_tool({"--bag", dir.file("run.bag"), "--settle-discard", "-1"}, dir);
+  EXPECT_EQ(bad.status, 2);
+  expect_single_line_error(bad, "--settle-discard");
+  bad = run_tool({"--bag", dir.file("run.bag"), "--settle-discard", "abc"}, dir);
+  EXPECT_EQ(bad.status, 2);
+  expect_single_line_error(bad, "settle-discard");
+  bad = run_tool({"--csv", dir.file("table.csv"), "--settle-discard", "0.1"}, dir);
+  EXPECT_EQ(bad.status, 2);
+  expect_single_line_error(bad, "--settle-discard applies to --bag only");
+}
+
 // ---- bad input ----------------------------------------------------------------------------------
 
 TEST(OfflineFitBadInput, MissingFile) {
@@ -717,7 +767,7 @@ TEST(OfflineFitBadInput, CommandLine) {
   r = run_tool({"--help"}, dir);
   EXPECT_EQ(r.status, 0);
   for (const char* opt : {"--bag", "--csv", "--imu-topic", "--command-topic", "--gravity", "--model", "--analyze",
-                          "--json", "--csv-out"}) {
+                          "--json", "--csv-out", "--settle-discard"}) {
     EXPECT_NE(r.out.find(opt), std::string::npos) << opt;
   }
 }
