@@ -11,7 +11,23 @@ def main():
     root = sys.argv[1]
     passed, failed, failures = 0, 0, []
     files = sorted(glob.glob(os.path.join(root, "**", "*.xml"), recursive=True))
+    names = set(os.path.basename(f) for f in files)
     for path in files:
+        # rostest writes rostest-test_ros_NAME.xml (one case for the whole launch) beside
+        # rosunit-NAME.xml (the gtest cases inside it): count the inner cases, and the launch
+        # only when it has no inner file or itself failed (a node that never came up).
+        base = os.path.basename(path)
+        inner = None
+        if base.startswith("rostest-"):
+            inner = "rosunit-" + base[len("rostest-"):].split("test_ros_", 1)[-1]
+        if inner in names:
+            try:
+                launch_failed = any(c.find("failure") is not None or c.find("error") is not None
+                                    for c in ET.parse(path).iter("testcase"))
+            except ET.ParseError:
+                launch_failed = True
+            if not launch_failed:
+                continue
         try:
             tree = ET.parse(path)
         except ET.ParseError as error:
