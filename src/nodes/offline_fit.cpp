@@ -34,6 +34,7 @@
 #include "accel_intrinsics/core/discrepancy.h"
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/raw_stream_analysis.h"
 #include "accel_intrinsics/core/result_json.h"
 #include "accel_intrinsics/ros/bag_input.h"
 #include "accel_intrinsics/ros/names.h"
@@ -86,6 +87,9 @@ struct Input {
   bool from_bag = false;
   bool complete = true;               // bag: DONE seen, no open dwell, every announced step found
   std::vector<std::string> warnings;  // why not complete, and anything else worth a look
+  // Bag with --analyze: the raw streams, for the timing-lag estimate.
+  std::vector<core::GimbalEvent> raw_commands;
+  std::vector<core::ImuSample> raw_samples;
 };
 
 // ---- INTEGRATION HOOK: --analyze --------------------------------------------------------------
@@ -97,8 +101,9 @@ struct Input {
 // Set kAnalysisAvailable to false to take --analyze out of a build without the analysis.
 constexpr bool kAnalysisAvailable = true;
 
-void run_analysis(const core::PositionTable& table, const core::FitOptions& options,
-                  const core::FitResult& /*result*/, nlohmann::json& json, std::ostream& text) {
+void run_analysis(const Input& input, const core::FitOptions& options, nlohmann::json& json,
+                  std::ostream& text) {
+  const core::PositionTable& table = input.table;
   core::AnalysisOptions analysis_options;
   analysis_options.local_gravity = options.local_gravity;
   core::AnalysisResult analysis;
@@ -112,6 +117,23 @@ void run_analysis(const core::PositionTable& table, const core::FitOptions& opti
     if (!json.contains(it.key())) json[it.key()] = it.value();
   }
   core::write_analysis_report(text, analysis);
+
+  // Timing lag shows only in the raw streams around the moves, which a bag has.
+  if (!input.from_bag) return;
+  const core::TimingLagEstimate lag =
+      core::estimate_timing_lag(input.raw_commands, input.raw_samples, table, analysis.after_fit);
+  json["timing_lag"] = {{"ok", lag.ok},         {"message", lag.message},     {"value", lag.lag_s},
+                        {"std", lag.std_s},     {"p_value", lag.p_value},     {"detected", lag.detected},
+                        {"lr_chi2", lag.lr_chi2}, {"samples_used", lag.samples_used},
+                        {"detection_threshold", lag.detection_threshold_s}};
+  if (lag.detected) {
+    json["effects"].push_back({{"name", "timing_lag"},
+                               {"target", "all"},
+                               {"value", lag.lag_s},
+                               {"std", lag.std_s},
+                               {"p_value", lag.p_value}});
+  }
+  text << "  timing lag (raw streams): " << (lag.ok ? "" : "no estimate: ") << lag.message << "\n";
 }
 // ---- end of hook -----------------------------------------------------------------------------
 
@@ -135,6 +157,11 @@ Input read_bag_input(const Arguments& args) {
   options.progress_stream = &std::cerr;
   options.progress_label = std::string(kProgram) + ": reading " + args.bag;
 
+  Input input;
+  if (args.analyze) {
+    options.raw_commands = &input.raw_commands;
+    options.raw_samples = &input.raw_samples;
+  }
   ai::BagRun run;
   try {
     run = ai::read_bag(args.bag, options);
@@ -149,7 +176,6 @@ Input read_bag_input(const Arguments& args) {
   }
   if (st.imu_messages == 0) throw Failure{1, "no IMU messages on '" + st.imu_topic + "' in " + args.bag};
 
-  Input input;
   input.from_bag = true;
   input.table = std::move(run.table);
   const double duration = st.bag_end_s - st.bag_start_s;
@@ -375,7 +401,7 @@ int run(const Arguments& args) {
   json["complete"] = input.from_bag ? nlohmann::json(input.complete) : nlohmann::json(nullptr);
   json["warnings"] = input.warnings;
   std::ostringstream analysis_text;
-  if (args.analyze) run_analysis(input.table, fit_options, result, json, analysis_text);
+  if (args.analyze) run_analysis(input, fit_options, json, analysis_text);
 
   // Outputs: files first (all or nothing), then the report.
   const bool json_to_stdout = args.json_out == "-";

@@ -864,6 +864,7 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
       sample.stamp_s = imu.stamp.toSec();
       sample.outputs = Eigen::Vector3d(imu.x, imu.y, imu.z);
       assembler.add_sample(sample);
+      if (options.raw_samples) options.raw_samples->push_back(sample);
       ++stats.imu_messages;
       progress.update(++done);
     };
@@ -883,6 +884,7 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
       stats.steps_announced[core::index(event.phase)] = event.steps;
       if (event.state == core::GimbalState::Done) stats.done_seen = true;
       assembler.add_command(event);
+      if (options.raw_commands) options.raw_commands->push_back(event);
     };
 
     if (scanner) {

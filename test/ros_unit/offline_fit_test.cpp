@@ -470,6 +470,54 @@ TEST(OfflineFit, SimulatedRecordingMatchesInProcessPipeline) {
   }
 }
 
+TEST(OfflineFit, AnalyzeNamesATimingLagHiddenInTheRawStreams) {
+  // Only the raw streams around the moves show a lag between IMU stamps and the gimbal: a bag
+  // carries them, so --analyze must estimate it, name it and recover its value.
+  TempDir dir;
+  core::SimulationOptions sim;
+  sim.truth.S << 1.01, 0.004, -0.006, 0.002, 0.99, 0.01, -0.008, 0.005, 1.02;
+  sim.truth.O = Eigen::Vector3d(0.02, -0.04, 0.06);
+  const double lag_s = 0.010;
+  sim.truth.effects = {core::make_effect("timing_lag", "all", lag_s)};
+  sim.protocol.steps_per_phase = 8;
+  sim.protocol.dwell_s = 1.0;
+  sim.rate_hz = 200.0;
+  sim.seed = 11;
+  core::Recording rec = core::simulate_recording(sim);
+  {
+    rosbag::Bag bag;
+    bag.open(dir.file("lag.bag"), rosbag::bagmode::Write);
+    std::size_t c = 0, s = 0;
+    while (c < rec.commands.size() || s < rec.samples.size()) {
+      const bool take_command =
+          s == rec.samples.size() || (c < rec.commands.size() && rec.commands[c].stamp_s <= rec.samples[s].stamp_s);
+      if (take_command) {
+        auto e = rec.commands[c++];
+        e.stamp_s += 1000.0;
+        bag.write("/gimbal/command", ros::Time(e.stamp_s), ai::to_msg(e));
+      } else {
+        auto e = rec.samples[s++];
+        e.stamp_s += 1000.0;
+        bag.write("/imu/data_raw", ros::Time(e.stamp_s), ai::to_msg(e, "dut"));
+      }
+    }
+    bag.close();
+  }
+  const ToolRun r = run_tool({"--bag", dir.file("lag.bag"), "--analyze", "--json", dir.file("lag.json")}, dir);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json j = load_json(dir.file("lag.json"));
+  ASSERT_TRUE(j.contains("timing_lag")) << j.dump();
+  EXPECT_TRUE(j["timing_lag"]["ok"].get<bool>()) << j["timing_lag"].dump();
+  EXPECT_TRUE(j["timing_lag"]["detected"].get<bool>()) << j["timing_lag"].dump();
+  const double value = j["timing_lag"]["value"].get<double>();
+  const double std_s = j["timing_lag"]["std"].get<double>();
+  EXPECT_GT(std_s, 0.0);
+  EXPECT_NEAR(value, lag_s, 3 * std_s);
+  bool named = false;
+  for (const auto& e : j["effects"]) named = named || (e["name"] == "timing_lag" && e["target"] == "all");
+  EXPECT_TRUE(named) << j["effects"].dump();
+}
+
 TEST(OfflineFit, NanSamplesAreDroppedCountedAndFitSucceeds) {
   TempDir dir;
   HandRunOptions o;

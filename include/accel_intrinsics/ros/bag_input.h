@@ -50,6 +50,10 @@ struct BagInputOptions {
   std::ostream* progress_stream = nullptr;
   double progress_interval_s = 1.0;
   std::string progress_label = "reading bag";
+  // When set, every accepted command and IMU sample is also appended here, in bag order, for
+  // the raw-stream analyses (timing lag). Memory then grows with the bag.
+  std::vector<core::GimbalEvent>* raw_commands = nullptr;
+  std::vector<core::ImuSample>* raw_samples = nullptr;
 };
 
 // A topic of the bag with its message type, e.g. {"/imu/data_raw", "sensor_msgs/Imu"}.
