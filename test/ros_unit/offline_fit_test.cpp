@@ -4,6 +4,8 @@
 // or through the environment variable ACCEL_OFFLINE_FIT.
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
+
+#include <functional>
 #include <rosbag/bag.h>
 #include <sensor_msgs/Imu.h>
 #include <sys/stat.h>
@@ -275,6 +277,31 @@ HandRun make_hand_bag(const std::string& path, const HandRunOptions& o = {}) {
   return run;
 }
 
+// Writes a simulated recording as a bag: merged by stamp, a command first at equal stamps, as the
+// messages would arrive. The callbacks see each message as it is written.
+void write_recording_bag(const std::string& path, const core::Recording& rec,
+                         const std::function<void(const core::GimbalEvent&)>& on_command = {},
+                         const std::function<void(const sensor_msgs::Imu&)>& on_sample = {}) {
+  rosbag::Bag bag;
+  bag.open(path, rosbag::bagmode::Write);
+  std::size_t c = 0, s = 0;
+  while (c < rec.commands.size() || s < rec.samples.size()) {
+    const bool take_command =
+        s == rec.samples.size() || (c < rec.commands.size() && rec.commands[c].stamp_s <= rec.samples[s].stamp_s);
+    if (take_command) {
+      const auto& e = rec.commands[c++];
+      bag.write("/gimbal/command", ros::Time(e.stamp_s), ai::to_msg(e));
+      if (on_command) on_command(e);
+    } else {
+      const auto& e = rec.samples[s++];
+      const sensor_msgs::Imu msg = ai::to_msg(e, "dut");
+      bag.write("/imu/data_raw", ros::Time(e.stamp_s), msg);
+      if (on_sample) on_sample(msg);
+    }
+  }
+  bag.close();
+}
+
 json load_json(const std::string& path) { return json::parse(read_file(path)); }
 
 void expect_single_line_error(const ToolRun& r, const std::string& needle) {
@@ -432,28 +459,12 @@ TEST(OfflineFit, SimulatedRecordingMatchesInProcessPipeline) {
   ASSERT_FALSE(rec.commands.empty());
   ASSERT_FALSE(rec.samples.empty());
 
-  // Merge by stamp, commands first at equal stamps, as they would arrive; write and feed alike.
+  // Write and feed alike, in the order the messages would arrive.
   core::DwellAssembler assembler;
-  {
-    rosbag::Bag bag;
-    bag.open(dir.file("sim.bag"), rosbag::bagmode::Write);
-    std::size_t c = 0, s = 0;
-    while (c < rec.commands.size() || s < rec.samples.size()) {
-      const bool take_command =
-          s == rec.samples.size() || (c < rec.commands.size() && rec.commands[c].stamp_s <= rec.samples[s].stamp_s);
-      if (take_command) {
-        const auto& e = rec.commands[c++];
-        bag.write("/gimbal/command", ros::Time(e.stamp_s), ai::to_msg(e));
-        assembler.add_command(e);
-      } else {
-        const auto& e = rec.samples[s++];
-        const sensor_msgs::Imu msg = ai::to_msg(e, "dut");
-        bag.write("/imu/data_raw", ros::Time(e.stamp_s), msg);
-        assembler.add_sample(ai::to_core(msg));  // the stamp as it travels (ros::Time)
-      }
-    }
-    bag.close();
-  }
+  write_recording_bag(dir.file("sim.bag"), rec, [&](const core::GimbalEvent& e) { assembler.add_command(e); },
+                      [&](const sensor_msgs::Imu& msg) {
+                        assembler.add_sample(ai::to_core(msg));  // the stamp as it travels (ros::Time)
+                      });
   assembler.flush();
   const core::FitResult expected = core::fit(assembler.table());
 
@@ -484,25 +495,9 @@ TEST(OfflineFit, AnalyzeNamesATimingLagHiddenInTheRawStreams) {
   sim.rate_hz = 200.0;
   sim.seed = 11;
   core::Recording rec = core::simulate_recording(sim);
-  {
-    rosbag::Bag bag;
-    bag.open(dir.file("lag.bag"), rosbag::bagmode::Write);
-    std::size_t c = 0, s = 0;
-    while (c < rec.commands.size() || s < rec.samples.size()) {
-      const bool take_command =
-          s == rec.samples.size() || (c < rec.commands.size() && rec.commands[c].stamp_s <= rec.samples[s].stamp_s);
-      if (take_command) {
-        auto e = rec.commands[c++];
-        e.stamp_s += 1000.0;
-        bag.write("/gimbal/command", ros::Time(e.stamp_s), ai::to_msg(e));
-      } else {
-        auto e = rec.samples[s++];
-        e.stamp_s += 1000.0;
-        bag.write("/imu/data_raw", ros::Time(e.stamp_s), ai::to_msg(e, "dut"));
-      }
-    }
-    bag.close();
-  }
+  for (auto& e : rec.commands) e.stamp_s += 1000.0;  // a bag needs positive times
+  for (auto& e : rec.samples) e.stamp_s += 1000.0;
+  write_recording_bag(dir.file("lag.bag"), rec);
   const ToolRun r = run_tool({"--bag", dir.file("lag.bag"), "--analyze", "--json", dir.file("lag.json")}, dir);
   ASSERT_EQ(r.status, 0) << r.err;
   const json j = load_json(dir.file("lag.json"));
