@@ -1,7 +1,7 @@
 // Live load test of a running calibration node: publishes IMU messages at --rate (default
-// 10 kHz) and gimbal commands (0.5 s MOVING, then a dwell of --dwell s, default 1.5) on real time, then reports
-// the node's CPU share (from /proc/PID/stat) and its resident memory before and after, and the
-// node's own counters (calibration/status) to show that it kept up.
+// 10 kHz) and gimbal commands (0.5 s MOVING, then a dwell of --dwell s, default 1.5) on real time,
+// then reports the node's CPU share (from /proc/PID/stat) and its resident memory before and after,
+// and the node's own counters (calibration/status) to show that it kept up.
 //   rosrun accel_intrinsics calibration __name:=calibration &        (real time, no use_sim_time)
 //   rosrun accel_intrinsics calibration_node_load --pid $(pgrep -n calibration) --seconds 20
 #include <diagnostic_msgs/DiagnosticStatus.h>
@@ -55,6 +55,7 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "calibration_node_load", ros::init_options::AnonymousName);
   int pid = 0;
   double rate_hz = 10000.0, seconds = 20.0, dwell_s = 1.5;
+  double pace_s = 0.0005;  // the publisher's sleep between rounds: messages come in small bursts
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
     if (key == "--pid")
@@ -65,10 +66,13 @@ int main(int argc, char** argv) {
       seconds = std::atof(argv[i + 1]);
     else if (key == "--dwell")
       dwell_s = std::atof(argv[i + 1]);
+    else if (key == "--pace")
+      pace_s = std::atof(argv[i + 1]);
   }
-  if (pid <= 0 || rate_hz <= 0 || seconds <= 0 || dwell_s <= 0) {
+  if (pid <= 0 || rate_hz <= 0 || seconds <= 0 || dwell_s <= 0 || pace_s < 0) {
     std::fprintf(stderr,
-                 "usage: calibration_node_load --pid PID [--rate HZ] [--seconds S] [--dwell S]\n");
+                 "usage: calibration_node_load --pid PID [--rate HZ] [--seconds S] [--dwell S] "
+                 "[--pace S]\n");
     return 2;
   }
   ros::NodeHandle nh;
@@ -121,7 +125,7 @@ int main(int argc, char** argv) {
       imu.publish(msg);
     }
     ros::spinOnce();
-    ros::WallDuration(0.0005).sleep();
+    ros::WallDuration(pace_s).sleep();
   }
   const double wall = (ros::WallTime::now() - wall0).toSec();
   ros::WallDuration(1.5).sleep();  // the node drains its queue and publishes its status

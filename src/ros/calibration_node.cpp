@@ -55,11 +55,23 @@ bool parse_stamp(const std::string& message, double* stamp_s) {
 }  // namespace
 
 void ImmediateCallbackQueue::addCallback(const ros::CallbackInterfacePtr& callback, uint64_t) {
+  if (coalesce_s_ > 0.0) {
+    // roscpp reads messages already waiting in the socket back to back (a few microseconds
+    // apart); a longer gap since the previous callback returned means this thread has just been
+    // woken from its poll by a fresh message. Then nap, so that the next messages pile up in
+    // the socket and are read in one go: one wake-up per period instead of one per message.
+    constexpr std::chrono::microseconds kIdleGap(20);
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_return_ > kIdleGap) {
+      std::this_thread::sleep_for(std::chrono::duration<double>(coalesce_s_));
+    }
+  }
   // TryAgain only happens for callbacks that refuse concurrent calls; a subscription queue with
   // a single subscriber never does. Retry a few times to be safe, then leave it.
   for (int i = 0; i < 100; ++i) {
-    if (callback->ready() && callback->call() != ros::CallbackInterface::TryAgain) return;
+    if (callback->ready() && callback->call() != ros::CallbackInterface::TryAgain) break;
   }
+  last_return_ = std::chrono::steady_clock::now();
 }
 
 void ImmediateCallbackQueue::removeByID(uint64_t) {}
@@ -109,6 +121,9 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
   read_param(pnh, "steps", &o.steps);
   read_param(pnh, "frame_id", &o.frame_id);
   read_param(pnh, "immediate_imu", &o.immediate_imu);
+  read_param(pnh, "imu_coalesce_s", &o.imu_coalesce_s);
+  require(std::isfinite(o.imu_coalesce_s) && o.imu_coalesce_s >= 0.0 && o.imu_coalesce_s <= 0.05,
+          pnh, "imu_coalesce_s", "must be in [0, 0.05] s");
   read_param(pnh, "file_prefix", &o.file_prefix);
   require(o.file_prefix.find('/') == std::string::npos, pnh, "file_prefix", "must not contain '/'");
   // Analysis.
@@ -183,6 +198,7 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
   ros::SubscribeOptions imu_options = ros::SubscribeOptions::create<sensor_msgs::Imu>(
       names::kImuTopic, 20000, boost::bind(&CalibrationNode::on_imu, this, boost::placeholders::_1),
       ros::VoidConstPtr(), options_.immediate_imu ? &immediate_queue_ : nullptr);
+  immediate_queue_.set_coalesce_period(options_.imu_coalesce_s);
   imu_sub_ = nh_.subscribe(imu_options);
   progress_sub_ = nh_.subscribe(names::kProgressTopic, 10, &CalibrationNode::on_progress, this);
   timer_ =

@@ -32,6 +32,7 @@
 #include <diagnostic_updater/diagnostic_updater.h>
 
 #include <array>
+#include <chrono>
 #include <condition_variable>
 #include <fstream>
 #include <limits>
@@ -59,6 +60,13 @@ class ImmediateCallbackQueue : public ros::CallbackQueueInterface {
  public:
   void addCallback(const ros::CallbackInterfacePtr& callback, uint64_t owner_id = 0) override;
   void removeByID(uint64_t owner_id) override;
+  // Coalesce network wake-ups: when a message arrives after the thread was idle, nap for this
+  // long so that the following messages pile up in the socket and are read in one go. 0: off.
+  void set_coalesce_period(double seconds) { coalesce_s_ = seconds; }
+
+ private:
+  double coalesce_s_ = 0.0;
+  std::chrono::steady_clock::time_point last_return_{};
 };
 
 struct CalibrationOptions {
@@ -71,6 +79,7 @@ struct CalibrationOptions {
   std::string file_prefix;       // prefix of the file names in output_dir
   std::string frame_id = "dut";  // frame of the result header
   bool immediate_imu = true;     // handle IMU messages in the network thread (see above)
+  double imu_coalesce_s = 0.001;   // nap of the network thread woken from idle (see above), s
 
   // Analysis (issue 5).
   bool analyze = false;                 // run core::analyze() after each fit
