@@ -18,7 +18,8 @@ void validate(const SimulationOptions& options) {
   validate(options.truth);
   validate(options.protocol);
   if (!std::isfinite(options.rate_hz) || options.rate_hz <= 0.0) {
-    throw std::invalid_argument("simulation: rate_hz must be positive, got " + std::to_string(options.rate_hz));
+    throw std::invalid_argument("simulation: rate_hz must be positive, got " +
+                                std::to_string(options.rate_hz));
   }
   if (!std::isfinite(options.noise_density) || options.noise_density < 0.0) {
     throw std::invalid_argument("simulation: noise_density must be non-negative, got " +
@@ -31,7 +32,8 @@ void validate(const SimulationOptions& options) {
     throw std::invalid_argument("simulation: local_gravity must be positive");
   }
   if (options.rate_hz * options.protocol.dwell_s < 2.0) {
-    throw std::invalid_argument("simulation: dwell_s * rate_hz must give at least two samples per dwell");
+    throw std::invalid_argument(
+        "simulation: dwell_s * rate_hz must give at least two samples per dwell");
   }
 }
 
@@ -58,8 +60,9 @@ GimbalPose gimbal_pose_at(const std::vector<ScheduledPosition>& schedule, double
   GimbalPose pose;
   if (schedule.empty()) return pose;
   // The last position whose move has started.
-  auto it = std::upper_bound(schedule.begin(), schedule.end(), t_s,
-                             [](double t, const ScheduledPosition& p) { return t < p.move_start_s; });
+  auto it =
+      std::upper_bound(schedule.begin(), schedule.end(), t_s,
+                       [](double t, const ScheduledPosition& p) { return t < p.move_start_s; });
   if (it == schedule.begin()) {
     pose.phase = schedule.front().phase;
     pose.angle_rad = schedule.front().angle_rad;
@@ -75,15 +78,19 @@ GimbalPose gimbal_pose_at(const std::vector<ScheduledPosition>& schedule, double
   pose.at_rest = t_s >= target.settled_s;
   // Between MOVING and SETTLED the gimbal travels (within a phase) along a smooth profile.
   const bool same_phase = i > 0 && schedule[i - 1].phase == target.phase;
-  const double travel_s = target.settled_s - target.move_start_s;
-  if (same_phase && travel_s > 0.0 && t_s < target.settled_s) {
+  if (same_phase && t_s < target.settled_s) {
     const double from = schedule[i - 1].angle_rad;
-    // Smooth (raised-cosine) profile over the whole move-and-settle interval.
-    const double fraction = std::min(1.0, std::max(0.0, (t_s - target.move_start_s) / travel_s));
-    const double s = 0.5 - 0.5 * std::cos(fraction * kPi);
-    pose.angle_rad = from + (target.angle_rad - from) * s;
+    pose.angle_rad = from + (target.angle_rad - from) *
+                                move_fraction(t_s, target.move_start_s, target.settled_s);
   }
   return pose;
+}
+
+double move_fraction(double t_s, double move_start_s, double settled_s) {
+  const double travel_s = settled_s - move_start_s;
+  if (!(travel_s > 0.0)) return 1.0;
+  const double x = std::min(1.0, std::max(0.0, (t_s - move_start_s) / travel_s));
+  return 0.5 - 0.5 * std::cos(x * kPi);
 }
 
 PositionTable simulate_position_table(const SimulationOptions& options) {
@@ -166,7 +173,8 @@ Recording simulate_recording(const SimulationOptions& options) {
     sample.outputs = predict_outputs(options.truth, geom, options.local_gravity);
     for (int i = 0; i < 3; ++i) {
       double value = sample.outputs(i) + sigma * normal(rng);
-      if (options.quantization > 0.0) value = options.quantization * std::round(value / options.quantization);
+      if (options.quantization > 0.0)
+        value = options.quantization * std::round(value / options.quantization);
       sample.outputs(i) = value;
     }
     recording.samples.push_back(sample);

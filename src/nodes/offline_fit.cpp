@@ -13,12 +13,10 @@
 // failed fit, 2 bad command line; every failure prints exactly one line "offline_fit: error: ..."
 // on stderr and writes no output file. Outputs (--json, --csv-out) are written only on success,
 // each through a temporary file renamed into place.
-#include <CLI/CLI.hpp>
 #include <console_bridge/console.h>
-#include <nlohmann/json.hpp>
-
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -26,6 +24,7 @@
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -45,8 +44,9 @@ namespace core = accel_intrinsics::core;
 namespace {
 
 constexpr char kProgram[] = "offline_fit";
-// Accepted local gravity, m/s^2, exclusive bounds: the calibration node's (config/calibration.yaml);
-// Earth's surface spans 9.76..9.84, and unit slips (cm/s^2, or 1 for "one g") are refused.
+// Accepted local gravity, m/s^2, exclusive bounds: the calibration node's
+// (config/calibration.yaml); Earth's surface spans 9.76..9.84, and unit slips (cm/s^2, or 1 for
+// "one g") are refused.
 constexpr double kMinGravity = 9.7;
 constexpr double kMaxGravity = 9.9;
 
@@ -82,8 +82,8 @@ struct Arguments {
 // What was read, whatever the source.
 struct Input {
   core::PositionTable table;
-  nlohmann::json description;         // "input" key of the JSON
-  std::string summary;                // one line for the text report
+  nlohmann::json description;  // "input" key of the JSON
+  std::string summary;         // one line for the text report
   bool from_bag = false;
   bool complete = true;               // bag: DONE seen, no open dwell, every announced step found
   std::vector<std::string> warnings;  // why not complete, and anything else worth a look
@@ -92,14 +92,17 @@ struct Input {
   std::vector<core::ImuSample> raw_samples;
 };
 
-// ---- INTEGRATION HOOK: --analyze --------------------------------------------------------------
-// The discrepancy analysis (core/discrepancy.h, owned by the analysis engineer). It runs on the
-// same position table with the same local gravity; its base model is always `joint` (plus the
-// effects it names), whatever --model says for the main result. Its keys (effects [{name, target,
-// value, std, p_value, ...}], ambiguous [...], gap {before, after}, screening, ...) are added to
-// the JSON next to the main result's (never replacing one), its report follows the result table.
-// Set kAnalysisAvailable to false to take --analyze out of a build without the analysis.
-constexpr bool kAnalysisAvailable = true;
+// --analyze: the discrepancy analysis (core/discrepancy.h) on the same position table with the
+// same local gravity; its base model is always `joint` (plus the effects it names), whatever
+// --model says for the main result. Its keys (effects [{name, target, value, std, p_value, ...}],
+// ambiguous [...], gap {before, after}, screening, ...) are added to the JSON next to the main
+// result's (never replacing one), its report follows the result table. On a bag the timing lag
+// is screened too, from the raw streams.
+//
+// False alarms: the dwell screen spends AnalysisOptions::alpha (2.5 %) family-wise, the timing
+// lag test kTimingLagAlpha, so an effect-free bag names anything in at most 3.5 % of runs (the
+// requirement is 5 %; the margin keeps a check on 200 runs from failing by chance).
+constexpr double kTimingLagAlpha = 0.01;
 
 void run_analysis(const Input& input, const core::FitOptions& options, nlohmann::json& json,
                   std::ostream& text) {
@@ -120,11 +123,18 @@ void run_analysis(const Input& input, const core::FitOptions& options, nlohmann:
 
   // Timing lag shows only in the raw streams around the moves, which a bag has.
   if (!input.from_bag) return;
-  const core::TimingLagEstimate lag =
-      core::estimate_timing_lag(input.raw_commands, input.raw_samples, table, analysis.after_fit);
-  json["timing_lag"] = {{"ok", lag.ok},         {"message", lag.message},     {"value", lag.lag_s},
-                        {"std", lag.std_s},     {"p_value", lag.p_value},     {"detected", lag.detected},
-                        {"lr_chi2", lag.lr_chi2}, {"samples_used", lag.samples_used},
+  core::TimingLagEstimateOptions lag_options;
+  lag_options.alpha = kTimingLagAlpha;
+  const core::TimingLagEstimate lag = core::estimate_timing_lag(
+      input.raw_commands, input.raw_samples, table, analysis.after_fit, lag_options);
+  json["timing_lag"] = {{"ok", lag.ok},
+                        {"message", lag.message},
+                        {"value", lag.lag_s},
+                        {"std", lag.std_s},
+                        {"p_value", lag.p_value},
+                        {"detected", lag.detected},
+                        {"lr_chi2", lag.lr_chi2},
+                        {"samples_used", lag.samples_used},
                         {"detection_threshold", lag.detection_threshold_s}};
   if (lag.detected) {
     json["effects"].push_back({{"name", "timing_lag"},
@@ -135,7 +145,6 @@ void run_analysis(const Input& input, const core::FitOptions& options, nlohmann:
   }
   text << "  timing lag (raw streams): " << (lag.ok ? "" : "no estimate: ") << lag.message << "\n";
 }
-// ---- end of hook -----------------------------------------------------------------------------
 
 Input read_csv_input(const Arguments& args) {
   Input input;
@@ -145,7 +154,8 @@ Input read_csv_input(const Arguments& args) {
     throw Failure{1, one_line(e.what())};
   }
   input.description = {{"type", "csv"}, {"path", args.csv}, {"rows", input.table.rows.size()}};
-  input.summary = "position table " + args.csv + " (" + std::to_string(input.table.rows.size()) + " dwells)";
+  input.summary =
+      "position table " + args.csv + " (" + std::to_string(input.table.rows.size()) + " dwells)";
   return input;
 }
 
@@ -174,7 +184,8 @@ Input read_bag_input(const Arguments& args) {
   if (st.command_messages == 0) {
     throw Failure{1, "no gimbal commands on '" + st.command_topic + "' in " + args.bag};
   }
-  if (st.imu_messages == 0) throw Failure{1, "no IMU messages on '" + st.imu_topic + "' in " + args.bag};
+  if (st.imu_messages == 0)
+    throw Failure{1, "no IMU messages on '" + st.imu_topic + "' in " + args.bag};
 
   input.from_bag = true;
   input.table = std::move(run.table);
@@ -202,9 +213,9 @@ Input read_bag_input(const Arguments& args) {
       {"time_origin_s", input.table.time_origin_s},
   };
   std::ostringstream summary;
-  summary << "bag " << args.bag << " (" << st.imu_messages << " IMU messages on " << st.imu_topic << ", "
-          << st.command_messages << " commands on " << st.command_topic << ", " << std::fixed
-          << std::setprecision(1) << duration << " s)";
+  summary << "bag " << args.bag << " (" << st.imu_messages << " IMU messages on " << st.imu_topic
+          << ", " << st.command_messages << " commands on " << st.command_topic << ", "
+          << std::fixed << std::setprecision(1) << duration << " s)";
   input.summary = summary.str();
 
   if (!st.done_seen) {
@@ -213,9 +224,10 @@ Input read_bag_input(const Arguments& args) {
   }
   if (st.open_dwell) {
     input.complete = false;
-    input.warnings.push_back(std::string("the dwell (phase ") + core::phase_name(st.open_dwell_phase) + ", step " +
-                             std::to_string(st.open_dwell_step) + ") was still open at the end of the bag (" +
-                             std::to_string(st.open_dwell_samples) + " samples not used)");
+    input.warnings.push_back(
+        std::string("the dwell (phase ") + core::phase_name(st.open_dwell_phase) + ", step " +
+        std::to_string(st.open_dwell_step) + ") was still open at the end of the bag (" +
+        std::to_string(st.open_dwell_samples) + " samples not used)");
   }
   const std::array<int, 3> found = core::positions_per_phase(input.table);
   for (core::Phase p : core::kPhases) {
@@ -223,24 +235,28 @@ Input read_bag_input(const Arguments& args) {
     if (announced > 0 && found[core::index(p)] < static_cast<int>(announced)) {
       input.complete = false;
       input.warnings.push_back(std::string("phase ") + core::phase_name(p) + ": " +
-                               std::to_string(found[core::index(p)]) + " of " + std::to_string(announced) +
-                               " positions have a dwell");
+                               std::to_string(found[core::index(p)]) + " of " +
+                               std::to_string(announced) + " positions have a dwell");
     }
   }
   if (c.dropped_non_finite > 0) {
-    input.warnings.push_back(std::to_string(c.dropped_non_finite) + " IMU samples with non-finite values dropped");
+    input.warnings.push_back(std::to_string(c.dropped_non_finite) +
+                             " IMU samples with non-finite values dropped");
   }
   if (c.dropped_late > 0) {
-    input.warnings.push_back(std::to_string(c.dropped_late) +
-                             " messages arrived (in bag order) later than the reorder window and were dropped");
+    input.warnings.push_back(
+        std::to_string(c.dropped_late) +
+        " messages arrived (in bag order) later than the reorder window and were dropped");
   }
   if (st.invalid_commands > 0) {
-    input.warnings.push_back(std::to_string(st.invalid_commands) +
-                             " malformed gimbal commands ignored (phase, state, step/steps, angle or stamp)");
+    input.warnings.push_back(
+        std::to_string(st.invalid_commands) +
+        " malformed gimbal commands ignored (phase, state, step/steps, angle or stamp)");
   }
   if (c.commands_out_of_order > 0) {
     input.warnings.push_back(std::to_string(c.commands_out_of_order) +
-                             " gimbal commands out of protocol order (last: " + c.last_warning + ")");
+                             " gimbal commands out of protocol order (last: " + c.last_warning +
+                             ")");
   }
   return input;
 }
@@ -252,7 +268,8 @@ void check_phases(const core::PositionTable& table, int min_positions) {
   tally << "dwells per phase: x=" << counts[0] << ", y=" << counts[1] << ", z=" << counts[2];
   for (core::Phase p : core::kPhases) {
     if (counts[core::index(p)] == 0) {
-      throw Failure{1, std::string("phase ") + core::phase_name(p) + " is missing (" + tally.str() + ")"};
+      throw Failure{
+          1, std::string("phase ") + core::phase_name(p) + " is missing (" + tally.str() + ")"};
     }
   }
   for (core::Phase p : core::kPhases) {
@@ -272,21 +289,25 @@ void print_report(std::ostream& out, const Input& input, const core::FitResult& 
   for (const std::string& w : input.warnings) out << "warning:       " << w << "\n";
   out << "model:         " << r.model_label() << "\n";
   out << "local gravity: " << std::setprecision(9) << r.local_gravity << " m/s^2\n";
-  out << "positions:     x " << r.positions[0] << ", y " << r.positions[1] << ", z " << r.positions[2] << "\n\n";
+  out << "positions:     x " << r.positions[0] << ", y " << r.positions[1] << ", z "
+      << r.positions[2] << "\n\n";
 
-  auto line = [&out](const std::string& name, double value, double std_value, const std::string& unit) {
-    out << "  " << std::left << std::setw(18) << name << std::right << std::setw(20) << std::setprecision(12)
-        << value << "  +- " << std::left << std::setw(12) << std::setprecision(3) << std_value << std::right << " "
-        << unit << "\n";
+  auto line = [&out](const std::string& name, double value, double std_value,
+                     const std::string& unit) {
+    out << "  " << std::left << std::setw(18) << name << std::right << std::setw(20)
+        << std::setprecision(12) << value << "  +- " << std::left << std::setw(12)
+        << std::setprecision(3) << std_value << std::right << " " << unit << "\n";
   };
   out << "  " << std::left << std::setw(18) << "parameter" << std::right << std::setw(20) << "value"
       << "     std (k=1)\n";
   static const char* const kAngles[] = {"theta_uv", "theta_vw", "theta_wu"};
   for (int s = 0; s < 3; ++s) {
-    line(std::string("|") + core::accelerometer_name(s) + "|", in.responsivity(s), in.responsivity_std(s), "");
+    line(std::string("|") + core::accelerometer_name(s) + "|", in.responsivity(s),
+         in.responsivity_std(s), "");
   }
   for (int a = 0; a < 3; ++a) {
-    line(kAngles[a], core::rad_to_deg(in.angles_rad(a)), core::rad_to_deg(in.angles_std_rad(a)), "deg");
+    line(kAngles[a], core::rad_to_deg(in.angles_rad(a)), core::rad_to_deg(in.angles_std_rad(a)),
+         "deg");
   }
   for (int s = 0; s < 3; ++s) {
     line(std::string("O_") + core::accelerometer_name(s), r.O(s), r.O_std(s), "m/s^2");
@@ -295,17 +316,20 @@ void print_report(std::ostream& out, const Input& input, const core::FitResult& 
     for (int s = 0; s < 3; ++s) {
       for (core::Phase p : core::kPhases) {
         line(std::string("O_") + core::accelerometer_name(s) + core::phase_name(p),
-             r.offset_per_phase(s, core::index(p)), r.offset_per_phase_std(s, core::index(p)), "m/s^2");
+             r.offset_per_phase(s, core::index(p)), r.offset_per_phase_std(s, core::index(p)),
+             "m/s^2");
       }
     }
   }
   for (std::size_t i = 0; i < r.effects.size(); ++i) {
-    line(r.effects[i].label(), r.effects[i].value, i < r.effects_std.size() ? r.effects_std[i] : NAN, "");
+    line(r.effects[i].label(), r.effects[i].value,
+         i < r.effects_std.size() ? r.effects_std[i] : NAN, "");
   }
   out << "\n  vectors (rows of S, DUT frame x y z):\n";
   for (int s = 0; s < 3; ++s) {
     out << "    " << core::accelerometer_name(s) << " = [";
-    for (int c = 0; c < 3; ++c) out << (c ? ", " : "") << std::setw(17) << std::setprecision(10) << r.S(s, c);
+    for (int c = 0; c < 3; ++c)
+      out << (c ? ", " : "") << std::setw(17) << std::setprecision(10) << r.S(s, c);
     out << "]\n";
   }
   out << "  cross-sensitivity P = S^-1 (row-major):\n";
@@ -316,8 +340,8 @@ void print_report(std::ostream& out, const Input& input, const core::FitResult& 
     }
     out << "]\n";
   }
-  out << "\n  reduced chi2:  " << std::setprecision(6) << r.reduced_chi2 << " (chi2 " << r.chi2 << ", dof " << r.dof
-      << ")\n";
+  out << "\n  reduced chi2:  " << std::setprecision(6) << r.reduced_chi2 << " (chi2 " << r.chi2
+      << ", dof " << r.dof << ")\n";
   out << "  residual rms:  " << std::setprecision(6) << r.residual_rms << " m/s^2\n";
   out.flush();
 }
@@ -340,7 +364,8 @@ class PendingFile {
     if (stream_.fail()) throw Failure{1, "cannot write '" + path_ + "' (disk full?)"};
   }
   void commit() {
-    if (std::rename(temp_.c_str(), path_.c_str()) != 0) throw Failure{1, "cannot write '" + path_ + "'"};
+    if (std::rename(temp_.c_str(), path_.c_str()) != 0)
+      throw Failure{1, "cannot write '" + path_ + "'"};
     committed_ = true;
   }
 
@@ -352,12 +377,15 @@ class PendingFile {
 };
 
 int run(const Arguments& args) {
-  if (args.bag.empty() == args.csv.empty()) throw Failure{2, "give exactly one of --bag FILE or --csv FILE"};
+  if (args.bag.empty() == args.csv.empty())
+    throw Failure{2, "give exactly one of --bag FILE or --csv FILE"};
   if (!args.csv.empty() && (args.imu_topic_given || args.command_topic_given)) {
     throw Failure{2, "--imu-topic and --command-topic apply to --bag only"};
   }
   if (!args.csv.empty() && args.settle_discard_given) {
-    throw Failure{2, "--settle-discard applies to --bag only (a position table's dwells are already averaged)"};
+    throw Failure{
+        2,
+        "--settle-discard applies to --bag only (a position table's dwells are already averaged)"};
   }
   if (!std::isfinite(args.settle_discard_s) || args.settle_discard_s < 0.0) {
     std::ostringstream s;
@@ -366,8 +394,8 @@ int run(const Arguments& args) {
   }
   if (!std::isfinite(args.gravity) || args.gravity <= kMinGravity || args.gravity >= kMaxGravity) {
     std::ostringstream s;
-    s << "--gravity " << args.gravity << " is not a local gravity in m/s^2 (must be in (" << kMinGravity << ", "
-      << kMaxGravity << "))";
+    s << "--gravity " << args.gravity << " is not a local gravity in m/s^2 (must be in ("
+      << kMinGravity << ", " << kMaxGravity << "))";
     throw Failure{2, s.str()};
   }
   core::FitOptions fit_options;
@@ -377,9 +405,6 @@ int run(const Arguments& args) {
     throw Failure{2, "--model: " + one_line(e.what())};
   }
   fit_options.local_gravity = args.gravity;
-  if (args.analyze && !kAnalysisAvailable) {
-    throw Failure{1, "--analyze is not available yet in this build (the discrepancy analysis is not integrated)"};
-  }
   if (!args.json_out.empty() && args.json_out == args.csv_out) {
     throw Failure{2, "--json and --csv-out name the same file"};
   }
@@ -428,8 +453,8 @@ int run(const Arguments& args) {
   if (!analysis_text.str().empty()) report << "\n" << analysis_text.str();
   if (json_to_stdout) std::cout << json.dump(2) << std::endl;
   if (!input.complete) {
-    std::cerr << kProgram << ": warning: incomplete run, result from the dwells found: " << input.warnings.front()
-              << std::endl;
+    std::cerr << kProgram << ": warning: incomplete run, result from the dwells found: "
+              << input.warnings.front() << std::endl;
   }
   return 0;
 }
@@ -447,20 +472,23 @@ int main(int argc, char** argv) {
   Arguments args;
   app.add_option("--bag", args.bag, "recorded run (rosbag)");
   app.add_option("--csv", args.csv, "position table: " + std::string(core::kPositionTableHeader));
-  auto* imu_opt = app.add_option("--imu-topic", args.imu_topic, "IMU topic in the bag (sensor_msgs/Imu)")->capture_default_str();
+  auto* imu_opt =
+      app.add_option("--imu-topic", args.imu_topic, "IMU topic in the bag (sensor_msgs/Imu)")
+          ->capture_default_str();
   auto* cmd_opt = app.add_option("--command-topic", args.command_topic,
                                  "gimbal command topic in the bag (accel_intrinsics/GimbalCommand)")
-                     ->capture_default_str();
+                      ->capture_default_str();
   app.add_option("--gravity", args.gravity, "local gravity g in m/s^2")->capture_default_str();
   app.add_option("--model", args.model, "fit model: joint or eq4")->capture_default_str();
   app.add_flag("--analyze", args.analyze, "also run the discrepancy analysis (missing effects)");
   app.add_option("--json", args.json_out, "write the result as JSON to this file ('-': stdout)");
   app.add_option("--csv-out", args.csv_out, "write the position table (dwell means) as CSV");
-  auto* settle_opt = app.add_option("--settle-discard", args.settle_discard_s,
-                                    "bag only: drop the samples of the first SECONDS of each dwell (after the "
-                                    "gimbal reports SETTLED), like the calibration node's settle_discard_s")
-                         ->type_name("SECONDS")
-                         ->capture_default_str();
+  auto* settle_opt =
+      app.add_option("--settle-discard", args.settle_discard_s,
+                     "bag only: drop the samples of the first SECONDS of each dwell (after the "
+                     "gimbal reports SETTLED), like the calibration node's settle_discard_s")
+          ->type_name("SECONDS")
+          ->capture_default_str();
 
   try {
     app.parse(argc, argv);

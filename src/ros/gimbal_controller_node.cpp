@@ -376,9 +376,15 @@ void GimbalControllerNode::tick(const ros::Time& now) {
       break;
     case State::Moving:
       if (driver_->settled(now.toSec())) {
-        publish_command(now, GimbalCommand::SETTLED, schedule_[index_]);
+        // Stamped when the gimbal settled, which the driver may know better than this tick
+        // (the simulated one does; the timing-lag estimator reads the move from these stamps).
+        ros::Time settled_stamp = now;
+        const double settled_s = driver_->settled_at(now.toSec());
+        if (std::isfinite(settled_s) && settled_s > state_since_.toSec() && settled_s < now.toSec())
+          settled_stamp.fromSec(settled_s);
+        publish_command(settled_stamp, GimbalCommand::SETTLED, schedule_[index_]);
         state_ = State::Dwelling;
-        state_since_ = now;
+        state_since_ = settled_stamp;
         changed = true;
       } else if ((now - state_since_).toSec() > options_.settle_timeout_s) {
         std::string message;
@@ -432,9 +438,25 @@ void GimbalControllerNode::publish_command(const ros::Time& now, std::uint8_t st
 
 void GimbalControllerNode::publish_tf(const ros::Time& now) {
   if (now <= last_tf_ && !(now < last_tf_ - ros::Duration(1.0))) return;  // one per stamp
+  // The tf stream keeps tick_hz resolution on the node clock even when that clock advances in
+  // coarser steps (a simulated clock at time_scale): the stamps in between are filled in, so the
+  // sensor's tf lookups interpolate over one tick, not over a clock step. Not across a jump.
+  tf2_msgs::TFMessage msg;
+  const ros::Duration tick(1.0 / options_.tick_hz);
+  if (!last_tf_.isZero() && now > last_tf_ && now - last_tf_ <= ros::Duration(1.0)) {
+    for (ros::Time t = last_tf_ + tick; t < now; t += tick) {
+      const tf2_msgs::TFMessage at = make_tf_message(driver_->orientation(t.toSec()), t,
+                                                     options_.world_frame, options_.gimbal_frame,
+                                                     options_.dut_frame);
+      msg.transforms.insert(msg.transforms.end(), at.transforms.begin(), at.transforms.end());
+    }
+  }
+  const tf2_msgs::TFMessage at_now =
+      make_tf_message(driver_->orientation(now.toSec()), now, options_.world_frame,
+                      options_.gimbal_frame, options_.dut_frame);
+  msg.transforms.insert(msg.transforms.end(), at_now.transforms.begin(), at_now.transforms.end());
   last_tf_ = now;
-  tf_pub_.publish(make_tf_message(driver_->orientation(now.toSec()), now, options_.world_frame,
-                                  options_.gimbal_frame, options_.dut_frame));
+  tf_pub_.publish(msg);
 }
 
 double GimbalControllerNode::time_left_s(const ros::Time& now) const {

@@ -9,17 +9,14 @@
 
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/core/model.h"
+#include "accel_intrinsics/core/simulator.h"
 
 namespace accel_intrinsics {
 
 namespace {
 
-bool finite_non_negative(double v) { return std::isfinite(v) && v >= 0.0; }
-
-// Smooth start and stop: zero velocity at both ends of a move.
-double smooth_profile(double s) {
-  s = std::min(1.0, std::max(0.0, s));
-  return 0.5 - 0.5 * std::cos(core::kPi * s);
+bool finite_non_negative(double v) {
+  return std::isfinite(v) && v >= 0.0;
 }
 
 }  // namespace
@@ -34,16 +31,10 @@ double smooth_profile(double s) {
 Eigen::Matrix3d mount_rotation(core::Phase phase) {
   Eigen::Matrix3d P;  // f_dut = P f_gimbal, so R_gimbal_dut = P^T
   switch (phase) {
-    case core::Phase::X:
-      P.setIdentity();
-      break;
-    case core::Phase::Y:
-      P << 0, -1, 0, 1, 0, 0, 0, 0, 1;
-      break;
+    case core::Phase::X: P.setIdentity(); break;
+    case core::Phase::Y: P << 0, -1, 0, 1, 0, 0, 0, 0, 1; break;
     case core::Phase::Z:
-    default:
-      P << 0, 1, 0, 0, 0, 1, 1, 0, 0;
-      break;
+    default: P << 0, 1, 0, 0, 0, 1, 1, 0, 0; break;
   }
   return P.transpose();
 }
@@ -125,14 +116,29 @@ Eigen::Quaterniond SimulatedGimbalDriver::pose_of(const GimbalTarget& target) co
   return (t.world_gimbal * t.gimbal_dut).normalized();
 }
 
+double SimulatedGimbalDriver::commanded_angle(double t_s) const {
+  if (stopped_) return stopped_angle_;
+  if (!moved_ || !in_phase_move_) return target_.angle_rad;
+  return from_angle_ +
+         (target_.angle_rad - from_angle_) * core::move_fraction(t_s, move_start_s_, settled_s_);
+}
+
 void SimulatedGimbalDriver::move_to(const GimbalTarget& target, double t_s) {
-  const bool phase_change = moved_ ? target.phase != target_.phase : target.phase != core::Phase::X;
+  // Within a phase the gimbal turns along the core motion profile (the one the simulator and the
+  // timing-lag estimator use) from where it is commanded now; a phase change is a remount,
+  // which has no such trajectory (the DUT is carried over by the shortest rotation).
+  // The first move mounts the DUT, as the schedule has it (build_schedule: phase_change_s).
+  const bool same_phase = moved_ && target.phase == target_.phase;
+  from_angle_ = commanded_angle(t_s);
+  in_phase_move_ = same_phase && on_path_;
   from_ = Eigen::Quaterniond(orientation(t_s).world_dut());
   to_ = pose_of(target);
   target_ = target;
   stopped_ = false;
+  on_path_ = true;
   move_start_s_ = t_s;
-  move_end_s_ = t_s + options_.move_s + (phase_change ? options_.phase_change_s : 0.0);
+  motion_end_s_ = t_s + (same_phase ? options_.move_s : options_.phase_change_s);
+  settled_s_ = motion_end_s_ + options_.settle_s;
   moved_ = true;
 }
 
@@ -142,30 +148,45 @@ bool SimulatedGimbalDriver::settled(double t_s) const {
       options_.never_settle_phase == core::phase_name(target_.phase)) {
     return false;  // injected fault
   }
-  return !moved_ || stopped_ || t_s >= move_end_s_ + options_.settle_s;
+  return !moved_ || stopped_ || t_s >= settled_s_;
+}
+
+double SimulatedGimbalDriver::settled_at(double t_s) const {
+  if (!settled(t_s)) return t_s;
+  return std::min(t_s, stopped_ || !moved_ ? t_s : settled_s_);
 }
 
 void SimulatedGimbalDriver::stop(double t_s) {
   const Eigen::Quaterniond here(orientation(t_s).world_dut());
+  // Stopped in the middle of a remount the DUT is off every angle of the phase: the next move
+  // is then carried out as a remount too.
+  on_path_ = !moved_ || in_phase_move_ || t_s >= motion_end_s_;
+  stopped_angle_ = commanded_angle(t_s);
   from_ = to_ = here;
-  move_start_s_ = move_end_s_ = t_s;
+  move_start_s_ = motion_end_s_ = settled_s_ = t_s;
   stopped_ = true;
 }
 
 GimbalTransforms SimulatedGimbalDriver::orientation(double t_s) const {
   Eigen::Quaterniond world_dut = to_;
-  if (moved_ && t_s < move_end_s_) {
-    const double duration = move_end_s_ - move_start_s_;
-    const double s = duration > 0.0 ? (t_s - move_start_s_) / duration : 1.0;
-    world_dut = from_.slerp(smooth_profile(s), to_);
-  } else if (moved_ && !stopped_ && options_.ringing_rad != 0.0 && options_.settle_s > 0.0) {
-    // Decaying oscillation about the rotation axis after the motion stops.
-    const double dt = t_s - move_end_s_;
+  if (moved_ && !stopped_ && t_s < settled_s_) {
+    if (in_phase_move_) {
+      GimbalTarget along = target_;
+      along.angle_rad = commanded_angle(t_s);
+      world_dut = pose_of(along);
+    } else if (t_s < motion_end_s_) {
+      world_dut = from_.slerp(core::move_fraction(t_s, move_start_s_, motion_end_s_), to_);
+    }
+  }
+  if (moved_ && !stopped_ && options_.ringing_rad != 0.0 && options_.settle_s > 0.0 &&
+      t_s >= motion_end_s_) {
+    // Decaying oscillation about the rotation axis once the drive has done its part of the move.
+    const double dt = t_s - motion_end_s_;
     const double r = options_.ringing_rad * std::exp(-dt / (options_.settle_s / 5.0)) *
                      std::sin(2.0 * core::kPi * options_.ringing_hz * dt);
     Eigen::Vector3d axis = Eigen::Vector3d::Zero();
     axis(core::index(target_.phase)) = 1.0;
-    world_dut = to_ * Eigen::Quaterniond(Eigen::AngleAxisd(r, axis));
+    world_dut = world_dut * Eigen::Quaterniond(Eigen::AngleAxisd(r, axis));
   }
   GimbalTransforms out;
   out.gimbal_dut = Eigen::Quaterniond(mount_rotation(target_.phase)).normalized();

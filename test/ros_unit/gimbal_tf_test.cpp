@@ -9,6 +9,8 @@
 
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/core/model.h"
+#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/simulator.h"
 #include "accel_intrinsics/ros/accelerometer_source.h"
 #include "accel_intrinsics/ros/gimbal_controller_node.h"
 #include "accel_intrinsics/ros/gimbal_driver.h"
@@ -124,8 +126,13 @@ TEST(GimbalTf, MoveIsSmoothAndSettles) {
   ai::SimulatedGimbalDriver driver(options);
   ai::GimbalTarget target;
   target.phase = core::Phase::X;
-  target.step = 1;
+  target.step = 0;
   target.steps = 4;
+  target.angle_rad = 0.0;
+  driver.move_to(target, -10.0);  // the first move mounts the DUT: phase_change_s
+  EXPECT_FALSE(driver.settled(-10.0 + 2.4));
+  ASSERT_TRUE(driver.settled(-10.0 + 2.5));
+  target.step = 1;
   target.angle_rad = core::kPi / 2;
   const Eigen::Matrix3d before = driver.orientation(0.0).world_dut();
   driver.move_to(target, 0.0);
@@ -136,6 +143,95 @@ TEST(GimbalTf, MoveIsSmoothAndSettles) {
   // Ringing has decayed below 1e-4 rad well into the dwell.
   const Eigen::Vector3d f = force_in_dut(driver.orientation(2.0).world_dut());
   EXPECT_NEAR((f - kG * core::in_plane_direction(core::Phase::X, core::kPi / 2)).norm(), 0.0, 1e-3);
+}
+
+// One motion model: driven through a protocol's schedule, the simulated gimbal is, at every
+// instant of every move within a phase and of every dwell, where core::gimbal_pose_at() (the
+// simulator's and the timing-lag estimator's motion) puts it, gimbal effects included; and it
+// settles exactly at the schedule's SETTLED times.
+TEST(GimbalTf, SimulatedGimbalMovesAlongTheCoreProfile) {
+  std::vector<core::Effect> effects;
+  effects.push_back(effect(core::EffectKind::AngleOffset, 0, 0.003));
+  effects.push_back(effect(core::EffectKind::AngleScale, 1, -0.002));
+  effects.push_back(effect(core::EffectKind::AxisTilt, 2, 0.004));
+  effects.push_back(effect(core::EffectKind::Backlash, 1, 0.005));
+  std::vector<double> values;
+  for (const auto& e : effects) values.push_back(e.value);
+
+  core::ProtocolOptions protocol;
+  protocol.steps_per_phase = 8;
+  protocol.move_s = 0.8;
+  protocol.settle_s = 0.4;
+  protocol.dwell_s = 1.0;
+  protocol.phase_change_s = 3.0;
+  protocol.two_way = true;
+  const std::vector<core::ScheduledPosition> schedule = core::build_schedule(protocol);
+
+  ai::SimulatedGimbalOptions options;
+  options.move_s = protocol.move_s;
+  options.settle_s = protocol.settle_s;
+  options.phase_change_s = protocol.phase_change_s;
+  options.ringing_rad = 0.0;
+  options.effects = effects;
+  ai::SimulatedGimbalDriver driver(options);
+
+  int compared = 0, compared_moving = 0;
+  for (std::size_t i = 0; i < schedule.size(); ++i) {
+    const core::ScheduledPosition& p = schedule[i];
+    ai::GimbalTarget target;
+    target.phase = p.phase;
+    target.step = p.step;
+    target.steps = p.steps;
+    target.angle_rad = p.angle_rad;
+    target.approach = p.approach;
+    driver.move_to(target, p.move_start_s);
+    EXPECT_FALSE(driver.settled(p.settled_s - 1e-6)) << "position " << i;
+    ASSERT_TRUE(driver.settled(p.settled_s + 1e-9)) << "position " << i;
+    EXPECT_NEAR(driver.settled_at(p.settled_s + 0.05), p.settled_s, 1e-9) << "position " << i;
+    const bool remount = i == 0 || schedule[i - 1].phase != p.phase;
+    const double from = remount ? p.settled_s : p.move_start_s;
+    for (double t = from; t < p.dwell_end_s; t += 0.01) {
+      const core::GimbalPose pose = core::gimbal_pose_at(schedule, t);
+      core::DwellGeometry geom;
+      geom.phase = pose.phase;
+      geom.angle_rad = pose.angle_rad;
+      geom.approach = pose.approach;
+      const Eigen::Vector3d expected = core::specific_force(effects, values.data(), geom, kG);
+      const Eigen::Vector3d f = force_in_dut(driver.orientation(t).world_dut());
+      ASSERT_NEAR((f - expected).norm(), 0.0, 1e-10)
+          << "position " << i << " t " << t << " (moving: " << !pose.at_rest << ")";
+      ++compared;
+      if (!pose.at_rest && pose.angle_rad != p.angle_rad) ++compared_moving;
+    }
+  }
+  EXPECT_GT(compared_moving, 1000);  // the moves themselves were compared, not just the dwells
+  EXPECT_GT(compared, compared_moving);
+}
+
+// An abort mid-move freezes the gimbal where it is; the next move in the phase starts there.
+TEST(GimbalTf, StopMidMoveThenResumeIsContinuous) {
+  ai::SimulatedGimbalOptions options;
+  options.move_s = 1.0;
+  options.settle_s = 0.5;
+  ai::SimulatedGimbalDriver driver(options);
+  ai::GimbalTarget target;
+  target.phase = core::Phase::X;
+  target.steps = 4;
+  driver.move_to(target, -10.0);  // mount at step 0
+  target.step = 1;
+  target.angle_rad = core::kPi / 2;
+  driver.move_to(target, 0.0);
+  const Eigen::Matrix3d at_stop = driver.orientation(0.6).world_dut();
+  driver.stop(0.6);
+  EXPECT_TRUE(driver.settled(0.6));
+  EXPECT_TRUE(driver.orientation(5.0).world_dut().isApprox(at_stop, 1e-12));
+  driver.move_to(target, 5.0);
+  EXPECT_TRUE(driver.orientation(5.0).world_dut().isApprox(at_stop, 1e-12));
+  EXPECT_FALSE(driver.settled(6.4));
+  ASSERT_TRUE(driver.settled(6.5));
+  const Eigen::Vector3d f = force_in_dut(driver.orientation(6.5).world_dut());
+  EXPECT_NEAR((f - kG * core::in_plane_direction(core::Phase::X, core::kPi / 2)).norm(), 0.0,
+              1e-12);
 }
 
 TEST(GimbalTf, RejectsSensorEffects) {

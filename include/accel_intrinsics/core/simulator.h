@@ -15,11 +15,11 @@ namespace accel_intrinsics {
 namespace core {
 
 struct SimulationOptions {
-  Device truth;                          // S, O and effect terms (all of them, incl. gimbal side)
+  Device truth;  // S, O and effect terms (all of them, incl. gimbal side)
   ProtocolOptions protocol;
-  double rate_hz = 100.0;                // IMU sample rate
+  double rate_hz = 100.0;                            // IMU sample rate
   double noise_density = 300e-6 * kStandardGravity;  // (m/s^2)/sqrt(Hz), white
-  double quantization = 0.0;             // LSB in m/s^2; 0 = none
+  double quantization = 0.0;                         // LSB in m/s^2; 0 = none
   double local_gravity = kStandardGravity;
   std::uint64_t seed = 1;
 };
@@ -47,8 +47,15 @@ Recording simulate_recording(const SimulationOptions& options);
 // as a recorded run would arrive, then flushes it.
 void feed_in_stamp_order(const Recording& recording, DwellAssembler* assembler);
 
+// The one motion profile of a move within a phase (simulator, ROS stand's simulated gimbal,
+// timing-lag estimator): the fraction of the angle step done at time t, a raised cosine from 0 at
+// the MOVING stamp to 1 at the SETTLED stamp (zero angular velocity at both ends); clamped to
+// [0, 1] outside, 1 when the interval is empty.
+double move_fraction(double t_s, double move_start_s, double settled_s);
+
 // Commanded gimbal angle along the schedule at time t (seconds since the first MOVING): the
-// phase, the angle (smooth move between steps), and whether the gimbal is at rest.
+// phase, the angle (smooth move between steps, move_fraction), and whether the gimbal is at
+// rest. A move that changes phase (remount) has no trajectory: the target angle at once.
 struct GimbalPose {
   Phase phase = Phase::X;
   double angle_rad = 0.0;

@@ -59,6 +59,9 @@ class GimbalDriver {
   virtual void move_to(const GimbalTarget& target, double t_s) = 0;
   // True once the gimbal has reached the last target and settled.
   virtual bool settled(double t_s) const = 0;
+  // When settled(t_s): the time it settled (<= t_s), the stamp of SETTLED. A driver that only
+  // notices settling when asked returns t_s.
+  virtual double settled_at(double t_s) const { return t_s; }
   // Stops where it is (abort).
   virtual void stop(double t_s) = 0;
   // True orientation of the DUT at t_s (encoders on hardware; the model in simulation).
@@ -67,12 +70,18 @@ class GimbalDriver {
 
 // The simulated gimbal. Its effects are the gimbal side of DESIGN.md section 3 and are read from
 // the gimbal controller's own configuration; the calibration side never sees them.
+// A move within a phase follows core::move_fraction() (simulator.h) from the MOVING time to
+// the settled time, move_s + settle_s later: the commanded angle of the simulator and of the
+// timing-lag estimator, so a recorded stand run is evaluated with the motion that made it. A
+// phase change (remount) is a rotation over phase_change_s, then settle_s at rest. The times
+// are those of core::build_schedule() for the same move_s, phase_change_s and settle_s.
 struct SimulatedGimbalOptions {
   double move_s = 1.0;          // duration of a move to the next position, s
-  double phase_change_s = 5.0;  // extra duration of a move that changes phase (remount), s
-  double settle_s = 0.5;        // from the end of the motion until settled, s
-  double ringing_rad = 0.0;     // amplitude of the oscillation when the motion stops, rad;
-                                // decays with time constant settle_s / 5
+  double phase_change_s = 5.0;  // duration of a move that changes phase (remount), s
+  double settle_s = 0.5;        // from the end of the drive's motion until settled, s
+  double ringing_rad = 0.0;     // amplitude of an oscillation about the rotation axis that starts
+                                // move_s (phase_change_s) after MOVING, rad; it decays with
+                                // time constant settle_s / 5 (a disturbance outside the model)
   double ringing_hz = 4.0;      // its frequency, Hz
   // angle_offset, angle_scale, axis_tilt, backlash; at most one of each kind per phase.
   std::vector<core::Effect> effects;
@@ -92,6 +101,7 @@ class SimulatedGimbalDriver : public GimbalDriver {
   std::string name() const override { return "simulated"; }
   void move_to(const GimbalTarget& target, double t_s) override;
   bool settled(double t_s) const override;
+  double settled_at(double t_s) const override;
   void stop(double t_s) override;
   GimbalTransforms orientation(double t_s) const override;
 
@@ -101,14 +111,21 @@ class SimulatedGimbalDriver : public GimbalDriver {
 
  private:
   Eigen::Quaterniond pose_of(const GimbalTarget& target) const;  // R_world_dut
+  // Commanded angle alpha at t_s: along the move within a phase, else the target's.
+  double commanded_angle(double t_s) const;
 
   SimulatedGimbalOptions options_;
   std::vector<double> values_;
   GimbalTarget target_;
-  Eigen::Quaterniond from_ = Eigen::Quaterniond::Identity();
-  Eigen::Quaterniond to_ = Eigen::Quaterniond::Identity();
-  double move_start_s_ = 0.0;
-  double move_end_s_ = 0.0;
+  Eigen::Quaterniond from_ = Eigen::Quaterniond::Identity();  // R_world_dut at the move start
+  Eigen::Quaterniond to_ = Eigen::Quaterniond::Identity();    // R_world_dut at the target
+  double from_angle_ = 0.0;                                   // commanded angle at the move start
+  double stopped_angle_ = 0.0;  // commanded angle where an abort stopped the gimbal
+  double move_start_s_ = 0.0;   // MOVING
+  double motion_end_s_ = 0.0;   // the drive is done; ringing starts
+  double settled_s_ = 0.0;      // settled
+  bool in_phase_move_ = false;  // the move follows core::move_fraction (not a remount)
+  bool on_path_ = true;         // at an angle of the current phase (not stopped mid-remount)
   bool moved_ = false;
   bool stopped_ = false;  // stopped by an abort: at rest, no ringing
 };
