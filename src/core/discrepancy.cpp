@@ -265,19 +265,22 @@ std::string separating_experiment(const Effect& a, const Effect& b) {
            "angle offset: backlash flips sign with the direction of approach, an offset does not";
   }
   if (pair_is(EffectKind::AngleScale, EffectKind::OffsetDrift)) {
-    return "a closing position at 360 deg (repeat alpha = 0 at the end of each phase) separates drift "
-           "from an angle-scale error: at the repeated position drift changes every output by d * dt, "
-           "an angle-scale error by eps * 2 pi times the slope of that output (zero at its extremum); "
-           "a two-way sweep, which decouples time from angle, also separates them";
+    return "a closing position at 360 deg (ProtocolOptions::closing_position, "
+           "closing_position: true in config/protocol.yaml: repeat alpha = 0 at the end of each "
+           "phase) separates drift from an angle-scale error: at the repeated position drift "
+           "changes every output by d * dt, an angle-scale error by eps * 2 pi times the slope of "
+           "that output (zero at its extremum); a two-way sweep, which decouples time from angle, "
+           "also separates them";
   }
   if (pair_is(EffectKind::AngleScale, EffectKind::AngleOffset)) {
-    return "a closing position at 360 deg separates an angle-scale error from an angle offset: it is "
-           "the 0 deg position again, so an offset reads the same there while a scale error has grown "
-           "to eps * 2 pi";
+    return "a closing position at 360 deg (closing_position: true in config/protocol.yaml) "
+           "separates an angle-scale error from an angle offset: it is the 0 deg position again, "
+           "so an offset reads the same there while a scale error has grown to eps * 2 pi";
   }
   if (a.kind == EffectKind::OffsetDrift || b.kind == EffectKind::OffsetDrift) {
-    return "repeating the run in another phase order or with a closing position decouples time from "
-           "position and separates drift from the other term";
+    return "repeating the run in another phase order or with a closing position "
+           "(closing_position: true in config/protocol.yaml) decouples time from position and "
+           "separates drift from the other term";
   }
   return "a protocol that decouples the two terms (more positions, other phase order, a two-way "
          "sweep) separates them; compare the per-harmonic residual power of both models";

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "accel_intrinsics/core/constants.h"
 
@@ -53,36 +54,48 @@ void validate(const ProtocolOptions& options) {
   require_time(options.settle_s, "settle_s", true);
   require_time(options.dwell_s, "dwell_s", false);
   require_time(options.phase_change_s, "phase_change_s", true);
+  // two_way and closing_position combine freely: the closing position tops the up-sweep.
+}
+
+std::uint32_t scheduled_positions_per_phase(const ProtocolOptions& options) {
+  const std::uint32_t n = options.steps_per_phase;
+  return n * (options.two_way ? 2u : 1u) + (options.closing_position ? 1u : 0u);
 }
 
 std::vector<ScheduledPosition> build_schedule(const ProtocolOptions& options) {
   validate(options);
   const std::uint32_t n = options.steps_per_phase;
+  // The visit order of one phase: (step, approach).
+  std::vector<std::pair<std::uint32_t, int>> visits;
+  for (std::uint32_t i = 0; i < n; ++i) visits.emplace_back(i, +1);
+  // The closing position continues the up-sweep to 2 pi, so it is approached from below.
+  if (options.closing_position) visits.emplace_back(n, +1);
+  // The return sweep approaches every position from above (after the closing position it comes
+  // down from 2 pi; without it the controller overshoots before its first return position), so
+  // backlash shows as a two-valued angle error.
+  if (options.two_way) {
+    for (std::uint32_t i = 0; i < n; ++i) visits.emplace_back(n - 1 - i, -1);
+  }
   std::vector<ScheduledPosition> schedule;
-  schedule.reserve(3 * n * (options.two_way ? 2 : 1));
+  schedule.reserve(kNumPhases * visits.size());
   double t = 0.0;
   for (Phase phase : kPhases) {
     bool first_of_phase = true;
-    const int sweeps = options.two_way ? 2 : 1;
-    for (int sweep = 0; sweep < sweeps; ++sweep) {
-      for (std::uint32_t i = 0; i < n; ++i) {
-        ScheduledPosition position;
-        position.phase = phase;
-        position.step = sweep == 0 ? i : n - 1 - i;
-        position.steps = n;
-        position.angle_rad = step_angle(position.step, n);
-        // The return sweep approaches every position from above (the controller overshoots
-        // before its first return position), so backlash shows as a two-valued angle error.
-        position.approach = sweep == 0 ? +1 : -1;
-        position.move_start_s = t;
-        t += first_of_phase ? options.phase_change_s : options.move_s;
-        t += options.settle_s;
-        position.settled_s = t;
-        t += options.dwell_s;
-        position.dwell_end_s = t;
-        schedule.push_back(position);
-        first_of_phase = false;
-      }
+    for (const auto& visit : visits) {
+      ScheduledPosition position;
+      position.phase = phase;
+      position.step = visit.first;
+      position.steps = n;
+      position.angle_rad = step_angle(position.step, n);
+      position.approach = visit.second;
+      position.move_start_s = t;
+      t += first_of_phase ? options.phase_change_s : options.move_s;
+      t += options.settle_s;
+      position.settled_s = t;
+      t += options.dwell_s;
+      position.dwell_end_s = t;
+      schedule.push_back(position);
+      first_of_phase = false;
     }
   }
   return schedule;

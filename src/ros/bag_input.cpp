@@ -25,6 +25,7 @@
 #include <unordered_map>
 
 #include "accel_intrinsics/GimbalCommand.h"
+#include "accel_intrinsics/core/protocol.h"
 #include "accel_intrinsics/ros/conversions.h"
 
 namespace accel_intrinsics {
@@ -875,7 +876,7 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
       // The calibration node's acceptance test (CalibrationNode::handle_command), so that both
       // see the same commands.
       if (command.phase > GimbalCommand::PHASE_Z || command.state > GimbalCommand::DONE ||
-          !std::isfinite(command.angle) || command.steps == 0 || command.step >= command.steps ||
+          !std::isfinite(command.angle) || !core::step_in_protocol(command.step, command.steps) ||
           command.header.stamp.isZero()) {
         ++stats.invalid_commands;
         return;

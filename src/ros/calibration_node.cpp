@@ -275,8 +275,9 @@ core::AssemblerCounters CalibrationNode::counters() const {
 void CalibrationNode::handle_command(const GimbalCommand& msg) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   ++commands_received_;
+  // step == steps is the closing position at 2 pi (ProtocolOptions::closing_position).
   if (msg.phase > GimbalCommand::PHASE_Z || msg.state > GimbalCommand::DONE ||
-      !std::isfinite(msg.angle) || msg.steps == 0 || msg.step >= msg.steps ||
+      !std::isfinite(msg.angle) || !core::step_in_protocol(msg.step, msg.steps) ||
       msg.header.stamp.isZero()) {
     ++rejected_commands_;
     ROS_WARN_THROTTLE(5.0,
@@ -638,8 +639,9 @@ void CalibrationNode::on_dwell(const core::DwellRecord& row) {
   }
   if (in_blackout(row.t_start_s, row.t_end_s)) {
     ++rows_discarded_;
-    ROS_INFO("calibration: dwell %s %u/%u measured before the rewind: discarded",
-             core::phase_name(row.phase), row.step + 1, steps_seen_);
+    ROS_INFO("calibration: dwell %s %u/%u%s measured before the rewind: discarded",
+             core::phase_name(row.phase), row.step + 1, steps_seen_,
+             core::is_closing_step(row.step, steps_seen_) ? " (closing position)" : "");
     return;
   }
   if (!fault_.empty()) return;
@@ -657,8 +659,9 @@ void CalibrationNode::on_dwell(const core::DwellRecord& row) {
     if (!csv_.is_open()) open_csv(restored_);
     if (csv_) core::write_position_row(csv_, row);  // flushed: the checkpoint of this dwell
   }
-  ROS_INFO("calibration: dwell %s %u/%u: n = %llu, mean (%.5f, %.5f, %.5f) m/s^2",
+  ROS_INFO("calibration: dwell %s %u/%u%s: n = %llu, mean (%.5f, %.5f, %.5f) m/s^2",
            core::phase_name(row.phase), row.step + 1, steps_seen_,
+           core::is_closing_step(row.step, steps_seen_) ? " (closing position, 360 deg)" : "",
            static_cast<unsigned long long>(row.n), row.mean(0), row.mean(1), row.mean(2));
 }
 

@@ -80,13 +80,19 @@ GimbalControllerOptions GimbalControllerOptions::load(const ros::NodeHandle& pnh
               o.resume_phase == "z",
           pnh, "resume_phase", "must be x, y or z (or empty: from the start)");
   read_param(pnh, "resume_step", &o.resume_step);
-  require(o.resume_step < o.protocol.steps_per_phase, pnh, "resume_step",
-          "must be below steps (" + std::to_string(o.protocol.steps_per_phase) + ")");
+  // Step N is the closing position at 2 pi, part of the schedule only with closing_position.
+  require(o.resume_step < o.protocol.steps_per_phase ||
+              (o.protocol.closing_position && o.resume_step == o.protocol.steps_per_phase),
+          pnh, "resume_step",
+          "must be below steps (" + std::to_string(o.protocol.steps_per_phase) + ")" +
+              (o.protocol.closing_position ? ", or equal to it (the closing position)" : ""));
   read_param(pnh, "resume_approach", &o.resume_approach);
   require(o.resume_approach == 1 || o.resume_approach == -1, pnh, "resume_approach",
           "must be +1 (up sweep) or -1 (return sweep)");
   require(o.resume_approach == 1 || o.protocol.two_way, pnh, "resume_approach",
           "-1 needs two_way: true");
+  require(o.resume_approach == 1 || o.resume_step < o.protocol.steps_per_phase, pnh,
+          "resume_approach", "the closing position is only approached from below (+1)");
   read_param(pnh, "driver", &o.driver);
   require(o.driver == "simulated", pnh, "driver",
           "unknown gimbal driver '" + o.driver + "' (known: simulated)");
@@ -171,9 +177,10 @@ GimbalControllerNode::GimbalControllerNode(ros::NodeHandle nh, ros::NodeHandle p
   }
   timer_ =
       nh_.createTimer(ros::Duration(1.0 / options_.tick_hz), &GimbalControllerNode::on_timer, this);
-  ROS_INFO("gimbal controller: %s driver, %zu positions (N = %u per phase%s), about %.0f s; %s",
+  ROS_INFO("gimbal controller: %s driver, %zu positions (N = %u per phase%s%s), about %.0f s; %s",
            driver_->name().c_str(), schedule_.size(), options_.protocol.steps_per_phase,
            options_.protocol.two_way ? ", two-way" : "",
+           options_.protocol.closing_position ? ", closing position at 360 deg" : "",
            schedule_.empty() ? 0.0 : schedule_.back().dwell_end_s + options_.start_delay_s,
            options_.autostart ? "autostart"
                               : ("waiting for " + nh_.resolveName(names::kStartService)).c_str());
@@ -499,6 +506,7 @@ void GimbalControllerNode::publish_progress(const ros::Time& now, bool log) {
   text << state_name(state_);
   if (running) {
     text << " phase " << core::phase_name(p.phase) << " step " << p.step + 1 << "/" << p.steps;
+    if (core::is_closing_step(p.step, p.steps)) text << " (closing position, 360 deg)";
   }
   if (state_ == State::Aborted) text << ": " << last_error_;
   msg.message = text.str();

@@ -139,3 +139,32 @@ TEST(DwellAssembler, CallbackFiresOncePerDwellAndResetStartsOver) {
   EXPECT_TRUE(assembler.table().rows.empty());
   EXPECT_FALSE(assembler.done());
 }
+
+TEST(DwellAssembler, RecordsTheClosingPositionAsStepN) {
+  // A recorded run with the closing position: step N (= steps) at 2 pi is a dwell like any other,
+  // and with no angle effect it reads what step 0 read (the same orientation).
+  core::SimulationOptions sim;
+  sim.protocol.steps_per_phase = 4;
+  sim.protocol.dwell_s = 1.0;
+  sim.protocol.closing_position = true;
+  sim.rate_hz = 200;
+  const core::Recording rec = core::simulate_recording(sim);
+  core::DwellAssembler assembler;
+  core::feed_in_stamp_order(rec, &assembler);
+  const auto& rows = assembler.table().rows;
+  ASSERT_EQ(rows.size(), 15u);
+  EXPECT_EQ(assembler.counters().commands_out_of_order, 0u);
+  const double sigma = core::sample_noise_std(sim);
+  for (int phase = 0; phase < 3; ++phase) {
+    const core::DwellRecord& first = rows[5 * phase];
+    const core::DwellRecord& closing = rows[5 * phase + 4];
+    EXPECT_EQ(core::index(closing.phase), phase);
+    EXPECT_EQ(closing.step, 4u);
+    EXPECT_EQ(closing.angle_rad, 2.0 * core::kPi);
+    EXPECT_GT(closing.t_start_s, rows[5 * phase + 3].t_end_s);
+    const double tolerance = 6.0 * sigma * std::sqrt(1.0 / first.n + 1.0 / closing.n);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(closing.mean(k), first.mean(k), tolerance) << phase << k;
+    }
+  }
+}

@@ -3,7 +3,9 @@
 #include <random>
 #include <sstream>
 
+#include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/protocol.h"
 
 namespace core = accel_intrinsics::core;
 
@@ -139,4 +141,58 @@ TEST(PositionTableGeometry, ApproachFollowsTheSweepDirection) {
   EXPECT_DOUBLE_EQ(geoms[0].time_s, 1.0);
   table.time_origin_s = 5.0;
   EXPECT_DOUBLE_EQ(core::dwell_geometries(table)[1].time_s, 7.0);  // mid 12 - t0 5
+}
+
+TEST(PositionTableCsv, ClosingPositionRowReadsBackAndIsApproachedFromBelow) {
+  // Step N = 4 at 2 pi after step 3 at 3/4 turn: the closing position of a phase.
+  const double two_pi = 2.0 * core::kPi;
+  std::ostringstream csv;
+  csv.precision(17);
+  csv << kHeader;
+  for (std::uint32_t k = 0; k <= 4; ++k) {
+    csv << "y," << k << ',' << core::step_angle(k, 4) << ',' << 10.0 + 3 * k << ',' << 12.0 + 3 * k
+        << ",200,0.1,0.2,9.8,0.01,0.01,0.01\n";
+  }
+  std::istringstream in(csv.str());
+  const core::PositionTable table = core::read_position_table(in, "closing.csv");
+  ASSERT_EQ(table.rows.size(), 5u);
+  EXPECT_EQ(table.rows[4].step, 4u);
+  EXPECT_EQ(table.rows[4].angle_rad, two_pi);
+  EXPECT_EQ(core::positions_per_phase(table)[1], 5);
+  const auto geoms = core::dwell_geometries(table);
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(geoms[i].approach, +1) << i;
+  EXPECT_EQ(geoms[4].angle_rad, two_pi);  // not wrapped to 0
+  // The round trip keeps it exactly.
+  std::ostringstream out;
+  core::write_position_table(out, table);
+  std::istringstream again(out.str());
+  EXPECT_EQ(core::read_position_table(again).rows[4].angle_rad, two_pi);
+}
+
+TEST(PositionTableGeometry, ApproachesMatchTheScheduleWithClosingPositionAndTwoWay) {
+  // The directions inferred from the rows must be the ones the schedule (and so the simulator and
+  // the backlash term) used: up with the closing position at 2 pi, then down from above.
+  for (bool two_way : {false, true}) {
+    core::ProtocolOptions options;
+    options.steps_per_phase = 5;
+    options.closing_position = true;
+    options.two_way = two_way;
+    const auto schedule = core::build_schedule(options);
+    core::PositionTable table;
+    for (const auto& p : schedule) {
+      core::DwellRecord r;
+      r.phase = p.phase;
+      r.step = p.step;
+      r.angle_rad = p.angle_rad;
+      r.t_start_s = p.settled_s;
+      r.t_end_s = p.dwell_end_s;
+      r.n = 10;
+      table.rows.push_back(r);
+    }
+    const auto geoms = core::dwell_geometries(table);
+    ASSERT_EQ(geoms.size(), schedule.size());
+    for (std::size_t i = 0; i < geoms.size(); ++i) {
+      EXPECT_EQ(geoms[i].approach, schedule[i].approach) << (two_way ? "two-way " : "") << i;
+    }
+  }
 }

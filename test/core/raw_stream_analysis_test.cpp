@@ -81,7 +81,7 @@ void expect_same_schedule(const std::vector<ScheduledPosition>& got,
 }
 
 TEST(ScheduleFromCommands, ReproducesBuildScheduleOnSimulatedCommands) {
-  std::vector<ProtocolOptions> protocols(4);
+  std::vector<ProtocolOptions> protocols(6);
   protocols[1].steps_per_phase = 7;
   protocols[1].two_way = true;  // the turn repeats step N-1 with approach -1
   protocols[1].move_s = 0.37;
@@ -94,6 +94,11 @@ TEST(ScheduleFromCommands, ReproducesBuildScheduleOnSimulatedCommands) {
   protocols[3].steps_per_phase = 3;
   protocols[3].two_way = true;
   protocols[3].phase_change_s = 0.0;
+  protocols[4].steps_per_phase = 6;
+  protocols[4].closing_position = true;  // step N at 2 pi, approached from below
+  protocols[5].steps_per_phase = 4;
+  protocols[5].closing_position = true;  // then down from 2 pi, approach -1
+  protocols[5].two_way = true;
   for (std::size_t k = 0; k < protocols.size(); ++k) {
     SCOPED_TRACE(k);
     SimulationOptions sim;

@@ -145,7 +145,9 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
   for (int k = 0; k < 5; ++k, ++before_samples) sample(99.5 + 0.1 * k, truth_outputs(0, 0));
   double t = 100.0;
   for (int p = 0; p < 3; ++p) {
-    for (int n = 0; n < steps_; ++n) {
+    // Phase z ends with the closing position: step == steps, at 2 pi.
+    const int positions = p == 2 ? steps_ + 1 : steps_;
+    for (int n = 0; n < positions; ++n) {
       command(t, p, n, ai::GimbalCommand::MOVING);
       // One sample exactly at the MOVING stamp and nine while moving: all dropped.
       for (int k = 0; k < 10; ++k, ++moving_samples) sample(t + 0.1 * k, Eigen::Vector3d(1, 2, 3));
@@ -167,7 +169,7 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
       t += 2.0;
     }
   }
-  command(t, 2, steps_ - 1, ai::GimbalCommand::DONE);
+  command(t, 2, steps_, ai::GimbalCommand::DONE);
   for (int k = 0; k < 3; ++k, ++after_samples) sample(t + 0.1 * k, Eigen::Vector3d(7, 7, 7));
   // Out of protocol: a SETTLED after DONE; malformed: phase 7.
   command(t + 0.5, 0, 1, ai::GimbalCommand::SETTLED);
@@ -176,6 +178,12 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
     bad.header.stamp.fromSec(t + 0.6);
     bad.phase = 7;
     bad.steps = 3;
+    command_pub_.publish(bad);
+    bad.header.stamp.fromSec(t + 0.7);  // malformed: beyond the closing position
+    bad.phase = 0;
+    bad.step = 4;
+    bad.angle = core::step_angle(4, 3);
+    bad.state = ai::GimbalCommand::SETTLED;
     command_pub_.publish(bad);
   }
   const double done_stamp = t;
@@ -204,7 +212,7 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
   EXPECT_DOUBLE_EQ(r.local_gravity, g_);
   EXPECT_EQ(r.positions[0], 3u);
   EXPECT_EQ(r.positions[1], 3u);
-  EXPECT_EQ(r.positions[2], 3u);
+  EXPECT_EQ(r.positions[2], 4u);  // with the closing position
   const double vec[3][3] = {{r.u.x, r.u.y, r.u.z}, {r.v.x, r.v.y, r.v.z}, {r.w.x, r.w.y, r.w.z}};
   for (int s = 0; s < 3; ++s) {
     for (int c = 0; c < 3; ++c)
@@ -228,6 +236,7 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
     ASSERT_EQ(f.size(), 12u) << line;
     EXPECT_EQ(f[0], std::string(1, "xyz"[e.phase])) << line;
     EXPECT_EQ(std::stoi(f[1]), e.step) << line;
+    EXPECT_NEAR(std::stod(f[2]), core::step_angle(e.step, steps_), 1e-12) << line;  // 2 pi: closing
     EXPECT_NEAR(std::stod(f[3]), e.t_start, 1e-6) << line;
     EXPECT_NEAR(std::stod(f[4]), e.t_end, 1e-6) << line;
     EXPECT_EQ(std::stoi(f[5]), e.n) << "exact dwell assignment: " << line;
@@ -247,17 +256,17 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
     ros::WallDuration(0.05).sleep();
   }
   ASSERT_EQ(status_["state"], "RESULT");
-  EXPECT_EQ(std::stoi(status_["samples_used"]), 9 * dwell_samples);
+  EXPECT_EQ(std::stoi(status_["samples_used"]), 10 * dwell_samples);
   EXPECT_EQ(std::stoi(status_["dropped_outside_dwell"]),
             before_samples + moving_samples + after_samples);
   EXPECT_EQ(std::stoi(status_["dropped_non_finite"]), 1);
   EXPECT_EQ(std::stoi(status_["dropped_backwards"]), 1);
   EXPECT_EQ(std::stoi(status_["dropped_late"]), 0);
   EXPECT_EQ(std::stoi(status_["commands_out_of_order"]), 1);
-  EXPECT_EQ(std::stoi(status_["commands_rejected"]), 1);
+  EXPECT_EQ(std::stoi(status_["commands_rejected"]), 2);
   EXPECT_EQ(std::stoi(status_["dwells_x"]), 3);
   EXPECT_EQ(std::stoi(status_["dwells_y"]), 3);
-  EXPECT_EQ(std::stoi(status_["dwells_z"]), 3);
+  EXPECT_EQ(std::stoi(status_["dwells_z"]), 4);
 
   // Reset: the result is gone and the service says what is missing again.
   std_srvs::Trigger reset;

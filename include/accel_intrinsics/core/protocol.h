@@ -40,8 +40,19 @@ Eigen::Matrix<T, 3, 1> in_plane_direction(Phase p, const T& alpha) {
   }
 }
 
-// Commanded angle of step n of N: alpha_n = 2 pi n / N.
+// Commanded angle of step n of N: alpha_n = 2 pi n / N. Step N is the closing position at 2 pi
+// (ProtocolOptions::closing_position); the angle is not wrapped, so an angle-scale error there is
+// eps * 2 pi.
 double step_angle(std::uint32_t step, std::uint32_t steps);
+
+// Steps 0..N-1 are the sweep; step N (= steps) is the closing position at 2 pi.
+inline bool is_closing_step(std::uint32_t step, std::uint32_t steps) {
+  return steps > 0 && step == steps;
+}
+// Whether (step, steps) can come from build_schedule(): steps > 0 and step <= steps.
+inline bool step_in_protocol(std::uint32_t step, std::uint32_t steps) {
+  return steps > 0 && step <= steps;
+}
 
 // Timing and shape of a protocol run. All times in seconds.
 struct ProtocolOptions {
@@ -51,6 +62,14 @@ struct ProtocolOptions {
   double dwell_s = 2.0;                 // SETTLED to next MOVING
   double phase_change_s = 5.0;          // remount / reorient between phases (within MOVING)
   bool two_way = false;                 // sweep up then back down (reveals backlash)
+  // After the up-sweep of each phase, visit step N at 2 pi: the 0 deg orientation again, one turn
+  // and most of the phase's time later, approached from below (+1). There a drift has changed the
+  // outputs by d * dt, an angle offset reads as at 0 deg and an angle-scale error has grown to
+  // eps * 2 pi: the experiment the discrepancy analysis proposes to tell them apart, and the
+  // position with the most information on the angle scale. With two_way the closing position is
+  // the top of the up-sweep, before the turn: 0..N-1, N, then N-1..0 from above; appending it
+  // after the return sweep (which ends at 0) would need a full extra turn up and back.
+  bool closing_position = false;
 };
 
 // Throws std::invalid_argument naming the offending field.
@@ -68,8 +87,13 @@ struct ScheduledPosition {
   double dwell_end_s = 0;   // next MOVING or DONE stamp
 };
 
-// The full visit order: phase x, y, z; in each, steps 0..N-1 (and back N-1..0 when two_way).
-// Times start at 0 with the first MOVING. Used by the gimbal controller and the simulator alike.
+// Positions visited per phase: N, plus N for two_way, plus 1 for closing_position.
+std::uint32_t scheduled_positions_per_phase(const ProtocolOptions& options);
+
+// The full visit order: phase x, y, z; in each, steps 0..N-1, then step N at 2 pi when
+// closing_position, then back N-1..0 when two_way. Times start at 0 with the first MOVING, every
+// position (the closing one too) takes one move, settle and dwell. Used by the gimbal controller
+// and the simulator alike.
 std::vector<ScheduledPosition> build_schedule(const ProtocolOptions& options);
 
 }  // namespace core

@@ -29,14 +29,15 @@
 namespace accel_intrinsics {
 
 struct GimbalControllerOptions {
-  core::ProtocolOptions protocol;    // steps, move_s, settle_s, dwell_s, phase_change_s, two_way
+  // steps, move_s, settle_s, dwell_s, phase_change_s, two_way, closing_position
+  core::ProtocolOptions protocol;
   bool autostart = false;            // start the protocol without a start call
   double start_delay_s = 1.0;        // from start (or autostart) to the first MOVING, s
   double tick_hz = 100.0;            // state machine and tf rate on the node clock, Hz
   double progress_hz = 1.0;          // progress topic and log rate, Hz
   double settle_timeout_s = 60.0;    // abort when a move has not settled in this time, s
   std::string resume_phase;          // "" (from the start) or x|y|z: first position of a run
-  std::uint32_t resume_step = 0;
+  std::uint32_t resume_step = 0;     // 0..N-1, or N: the closing position (closing_position)
   int resume_approach = +1;          // +1: the up sweep, -1: the return sweep (two_way)
   std::string driver = "simulated";  // gimbal backend
   SimulatedGimbalOptions simulated;  // ~simulated/...: move and settling model, gimbal effects

@@ -66,7 +66,8 @@ bool read_vector3(const ros::NodeHandle& nh, const std::string& name, Eigen::Vec
 // (DESIGN.md section 3). Throws ParamError naming the entry ("effects[1].target").
 bool read_effects(const ros::NodeHandle& nh, const std::string& name,
                   std::vector<core::Effect>* value);
-// The protocol (steps, move_s, settle_s, dwell_s, phase_change_s, two_way), validated.
+// The protocol (steps, move_s, settle_s, dwell_s, phase_change_s, two_way, closing_position),
+// validated.
 core::ProtocolOptions read_protocol(const ros::NodeHandle& nh);
 
 }  // namespace accel_intrinsics
