@@ -264,12 +264,7 @@ TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
 
   // Outputs of the device at true time t (relative axis); the specific force too when wanted.
   auto model_at = [&](double t, Eigen::Vector3d* force) {
-    const GimbalPose pose = gimbal_pose_at(schedule, t);
-    DwellGeometry geom;
-    geom.phase = pose.phase;
-    geom.angle_rad = pose.angle_rad;
-    geom.time_s = t;
-    geom.approach = pose.approach;
+    const DwellGeometry geom = geometry_of(gimbal_pose_at(schedule, t), t);
     if (force != nullptr) *force = specific_force(terms, values.data(), geom, g);
     return predict_outputs<double>(S.data(), O.data(), terms, values.data(), geom, g);
   };

@@ -86,6 +86,15 @@ GimbalPose gimbal_pose_at(const std::vector<ScheduledPosition>& schedule, double
   return pose;
 }
 
+DwellGeometry geometry_of(const GimbalPose& pose, double time_s) {
+  DwellGeometry geom;
+  geom.phase = pose.phase;
+  geom.angle_rad = pose.angle_rad;
+  geom.time_s = time_s;
+  geom.approach = pose.approach;
+  return geom;
+}
+
 double move_fraction(double t_s, double move_start_s, double settled_s) {
   const double travel_s = settled_s - move_start_s;
   if (!(travel_s > 0.0)) return 1.0;
@@ -163,11 +172,7 @@ Recording simulate_recording(const SimulationOptions& options) {
   for (std::uint64_t k = 0; k <= count; ++k) {
     const double t_true = static_cast<double>(k) / options.rate_hz;
     const GimbalPose pose = gimbal_pose_at(schedule, t_true);
-    DwellGeometry geom;
-    geom.phase = pose.phase;
-    geom.angle_rad = pose.angle_rad;
-    geom.time_s = t_true;
-    geom.approach = pose.approach;
+    const DwellGeometry geom = geometry_of(pose, t_true);
     ImuSample sample;
     sample.stamp_s = t_true + lag;  // timing_lag: the IMU stamps its samples late
     sample.outputs = predict_outputs(options.truth, geom, options.local_gravity);

@@ -353,16 +353,10 @@ void GimbalControllerNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper&
 void GimbalControllerNode::begin_move(std::size_t index, const ros::Time& now) {
   index_ = index;
   const core::ScheduledPosition& p = schedule_[index_];
-  GimbalTarget target;
-  target.phase = p.phase;
-  target.step = p.step;
-  target.steps = p.steps;
-  target.angle_rad = p.angle_rad;
-  target.approach = p.approach;
   // The command goes out first with this stamp; the gimbal starts moving at the same instant,
   // so every sample stamped before it was taken at rest.
   publish_command(now, GimbalCommand::MOVING, p);
-  driver_->move_to(target, now.toSec());
+  driver_->move_to(target_of(p), now.toSec());
   state_ = State::Moving;
   state_since_ = now;
 }

@@ -178,13 +178,7 @@ TEST(GimbalTf, SimulatedGimbalMovesAlongTheCoreProfile) {
   int compared = 0, compared_moving = 0;
   for (std::size_t i = 0; i < schedule.size(); ++i) {
     const core::ScheduledPosition& p = schedule[i];
-    ai::GimbalTarget target;
-    target.phase = p.phase;
-    target.step = p.step;
-    target.steps = p.steps;
-    target.angle_rad = p.angle_rad;
-    target.approach = p.approach;
-    driver.move_to(target, p.move_start_s);
+    driver.move_to(ai::target_of(p), p.move_start_s);
     EXPECT_FALSE(driver.settled(p.settled_s - 1e-6)) << "position " << i;
     ASSERT_TRUE(driver.settled(p.settled_s + 1e-9)) << "position " << i;
     EXPECT_NEAR(driver.settled_at(p.settled_s + 0.05), p.settled_s, 1e-9) << "position " << i;
@@ -192,10 +186,7 @@ TEST(GimbalTf, SimulatedGimbalMovesAlongTheCoreProfile) {
     const double from = remount ? p.settled_s : p.move_start_s;
     for (double t = from; t < p.dwell_end_s; t += 0.01) {
       const core::GimbalPose pose = core::gimbal_pose_at(schedule, t);
-      core::DwellGeometry geom;
-      geom.phase = pose.phase;
-      geom.angle_rad = pose.angle_rad;
-      geom.approach = pose.approach;
+      const core::DwellGeometry geom = core::geometry_of(pose, t);
       const Eigen::Vector3d expected = core::specific_force(effects, values.data(), geom, kG);
       const Eigen::Vector3d f = force_in_dut(driver.orientation(t).world_dut());
       ASSERT_NEAR((f - expected).norm(), 0.0, 1e-10)

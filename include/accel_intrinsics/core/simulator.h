@@ -63,6 +63,8 @@ struct GimbalPose {
   bool at_rest = false;
 };
 GimbalPose gimbal_pose_at(const std::vector<ScheduledPosition>& schedule, double t_s);
+// The model's geometry of a pose, time_s after t0 (the drift term's clock).
+DwellGeometry geometry_of(const GimbalPose& pose, double time_s);
 
 }  // namespace core
 }  // namespace accel_intrinsics

@@ -49,6 +49,8 @@ struct GimbalTarget {
   double angle_rad = 0.0;  // commanded alpha
   int approach = +1;       // +1 from below (increasing angle), -1 from above
 };
+// The target of one position of the schedule.
+GimbalTarget target_of(const core::ScheduledPosition& position);
 
 class GimbalDriver {
  public:
