@@ -299,7 +299,7 @@ void CalibrationNode::handle_command(const GimbalCommand& msg) {
                table_.rows.size());
       reset("a new run starts over the checkpoint");
     } else {
-      begin_resume();
+      begin_resume("calibration node restarted from its checkpoint");
     }
   }
   const bool new_run =
@@ -355,6 +355,14 @@ void CalibrationNode::on_progress(const diagnostic_msgs::DiagnosticStatus::Const
   std::string state;
   for (const auto& kv : msg->values) {
     if (kv.key == "state") state = kv.value;
+  }
+  // A running controller never goes back to IDLE by itself: a new process has taken its place
+  // (respawned after a crash). The run it drove is still open here: continue it.
+  const bool was_running = controller_state_ == "MOVING" || controller_state_ == "SETTLED";
+  if (state == "IDLE" && was_running && !done_pending_ && !assembler_.done() && !has_result_ &&
+      fault_.empty() && controller_abort_.empty()) {
+    controller_restarted_ = true;
+    ROS_WARN("calibration: the gimbal controller restarted in the middle of the run");
   }
   controller_state_ = state;
   if (state == "ABORTED") {
@@ -418,6 +426,10 @@ void CalibrationNode::warn_on_new_drops() {
 void CalibrationNode::update(const ros::Time& now) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   if (now.isZero()) return;
+  if (controller_restarted_ && !request_pending()) {
+    controller_restarted_ = false;
+    begin_resume("the gimbal controller restarted mid-run");
+  }
   if (resume_pending_ && controller_state_ == "DONE") {
     // No gimbal command since the restart and the controller finished the protocol meanwhile
     // (this node died in the last dwells): resume after a grace period. An idle controller
@@ -426,7 +438,7 @@ void CalibrationNode::update(const ros::Time& now) {
       resume_deadline_ =
           now + ros::Duration(std::max(2.0, 2.0 * options_.assembler.reorder_window_s));
     } else if (now >= resume_deadline_) {
-      begin_resume();
+      begin_resume("calibration node restarted from its checkpoint");
     }
   }
   if (restore_done_) {
@@ -469,9 +481,10 @@ void CalibrationNode::update(const ros::Time& now) {
   if (updater_) updater_->update();
 }
 
-void CalibrationNode::begin_resume() {
-  // Continue the checkpointed run: have the controller go to the position after the last
-  // checkpointed dwell (or to the first one), and discard everything measured before it.
+void CalibrationNode::begin_resume(const std::string& cause) {
+  // Have the controller go to the position after the last recorded dwell (or to the first one),
+  // and discard everything measured before its MOVING (a dwell cut short, samples taken while
+  // nobody drove the gimbal).
   resume_pending_ = false;
   request_ = ControllerRequest();
   request_.kind = ControllerRequest::Kind::Resume;
@@ -483,8 +496,8 @@ void CalibrationNode::begin_resume() {
     request_.step = last.step;
     request_.approach = core::dwell_geometries(table_).back().approach;
     request_.after = true;
-    request_.reason = "calibration node restarted from its checkpoint";
-    ROS_WARN("calibration: resuming after %s (%zu dwells restored)",
+    request_.reason = cause;
+    ROS_WARN("calibration: %s: resuming after %s (%zu dwells recorded)", cause.c_str(),
              position_label(last.phase, last.step, request_.approach).c_str(),
              table_.rows.size());
   } else {
@@ -492,8 +505,9 @@ void CalibrationNode::begin_resume() {
     request_.step = 0;
     request_.approach = +1;
     request_.after = false;
-    request_.reason = "calibration node restarted with no dwell checkpointed";
-    ROS_WARN("calibration: resuming from the first position (no dwell checkpointed)");
+    request_.reason = cause + ", no dwell recorded";
+    ROS_WARN("calibration: %s: resuming from the first position (no dwell recorded)",
+             cause.c_str());
   }
 }
 

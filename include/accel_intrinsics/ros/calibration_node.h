@@ -181,7 +181,10 @@ class CalibrationNode {
   void check_watchdogs(const ros::Time& now);
   bool in_blackout(double t_start_s, double t_end_s) const;
   bool request_pending() const;  // a rewind asked for or not yet confirmed
-  void begin_resume();           // continue the checkpointed run (after a restart)
+  // Continue the run after the last recorded dwell, discarding what was measured before the
+  // controller's new MOVING: after this node restarted from its checkpoint, or after the gimbal
+  // controller restarted mid-run. `cause` names which, for the logs and the controller.
+  void begin_resume(const std::string& cause);
   void restart_assembler();
   ControllerRequest take_request();
   void apply_reply(const ControllerRequest& request, bool called, bool success,
@@ -244,6 +247,8 @@ class CalibrationNode {
   bool resume_pending_ = false;    // restored mid-protocol: rewind the controller on its first command
   ros::Time resume_deadline_;      // ... or at this time if no command comes
   std::string controller_state_;   // latest state on gimbal_controller/progress
+  // The controller came back IDLE in the middle of a run (it died and was restarted).
+  bool controller_restarted_ = false;
   bool restore_done_ = false;      // the checkpoint says DONE: fit it at the first update
   std::vector<Blackout> blackouts_;
   ControllerRequest request_;      // pending, sent by on_timer outside the lock

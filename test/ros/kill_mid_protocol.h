@@ -1,0 +1,164 @@
+// Shared by the "nothing lost" rostests: SIGKILL a node of the stand mid-protocol; roslaunch
+// respawns it and the run continues after the last recorded dwell. The final result must be the
+// fit of a complete table (every position once, in protocol order, t0 = the run's first
+// command) and match the truth. resume_after_kill.test kills the calibration node (it reloads its
+// checkpoint), controller_restart.test the gimbal controller (the calibration node rewinds it).
+#pragma once
+
+#include <diagnostic_msgs/DiagnosticStatus.h>
+#include <signal.h>
+#include <std_srvs/Trigger.h>
+#include <ros/master.h>
+#include <ros/network.h>
+#include <xmlrpcpp/XmlRpcClient.h>
+#include <yaml-cpp/yaml.h>
+
+#include <map>
+#include <mutex>
+#include <set>
+
+#include "accel_intrinsics/GimbalCommand.h"
+#include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/position_table.h"
+#include "stand_checks.h"
+
+namespace {
+std::mutex mutex;
+std::map<std::string, std::string> progress, status;
+double first_moving_stamp = -1.0;
+void on_progress(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex);
+  for (const auto& kv : msg->values) progress[kv.key] = kv.value;
+}
+void on_status(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex);
+  for (const auto& kv : msg->values) status[kv.key] = kv.value;
+}
+void on_command(const accel_intrinsics::GimbalCommand::ConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex);
+  if (first_moving_stamp < 0 && msg->state == accel_intrinsics::GimbalCommand::MOVING &&
+      msg->phase == 0 && msg->step == 0) {
+    first_moving_stamp = msg->header.stamp.toSec();
+  }
+}
+std::string value(std::map<std::string, std::string>& m, const std::string& key) {
+  std::lock_guard<std::mutex> lock(mutex);
+  return m[key];
+}
+// The pid of a node, from its own XML-RPC API (getPid), as rosnode does.
+int node_pid(const std::string& node) {
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  args[1] = node;
+  if (!ros::master::execute("lookupNode", args, result, payload, false)) return -1;
+  const std::string uri = static_cast<std::string>(payload);
+  std::string host;
+  std::uint32_t port = 0;
+  if (!ros::network::splitURI(uri, host, port)) return -1;
+  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
+  XmlRpc::XmlRpcValue request, response;
+  request[0] = ros::this_node::getName();
+  if (!client.execute("getPid", request, response) || response.getType() != XmlRpc::XmlRpcValue::TypeArray ||
+      response.size() < 3 || static_cast<int>(response[0]) != 1) {
+    return -1;
+  }
+  return static_cast<int>(response[2]);
+}
+}  // namespace
+
+// The whole scenario; `victim` is the node to kill ("/calibration" or "/gimbal_controller").
+inline void kill_mid_protocol_and_check(const std::string& victim) {
+  ros::NodeHandle nh, pnh("~");
+  const stand_checks::Limits limits = stand_checks::load_limits(pnh);
+  double timeout_s = 300.0;
+  int steps = 6, kill_at = 8;
+  std::string output_dir;
+  pnh.getParam("timeout_s", timeout_s);
+  pnh.getParam("steps", steps);
+  pnh.getParam("kill_at_position", kill_at);
+  ASSERT_TRUE(pnh.getParam("output_dir", output_dir));
+  ros::Subscriber p = nh.subscribe("/gimbal_controller/progress", 10, on_progress);
+  ros::Subscriber s = nh.subscribe("/calibration/status", 10, on_status);
+  ros::Subscriber c = nh.subscribe("/gimbal/command", 100, on_command);
+  ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
+  ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(60.0)));
+  ros::WallDuration(1.0).sleep();  // subscriptions connected
+
+  // A clean start (no checkpoint of an earlier test run), then the protocol.
+  std_srvs::Trigger reset, start;
+  ASSERT_TRUE(ros::service::call("/calibration/reset", reset));
+  ASSERT_TRUE(ros::service::call("/gimbal_controller/start", start));
+  ASSERT_TRUE(start.response.success) << start.response.message;
+
+  // Mid-protocol: SIGKILL.
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
+  while (ros::WallTime::now() < deadline) {
+    const std::string position = value(progress, "position");
+    if (!position.empty() && std::stoi(position) >= kill_at) break;
+    ros::WallDuration(0.05).sleep();
+  }
+  ASSERT_GE(std::stoi(value(progress, "position")), kill_at);
+  const int pid = node_pid(victim);
+  ASSERT_GT(pid, 1);
+  ASSERT_EQ(kill(pid, SIGKILL), 0);
+  std::printf("killed %s (pid %d) at position %s (phase %s step %s)\n", victim.c_str(), pid,
+              value(progress, "position").c_str(), value(progress, "phase").c_str(),
+              value(progress, "step").c_str());
+
+  // roslaunch respawns it; it resumes; the protocol ends with a result.
+  accel_intrinsics::GetIntrinsics::Response res;
+  bool respawned = false;
+  while (ros::WallTime::now() < deadline) {
+    const int now_pid = node_pid(victim);
+    if (now_pid > 1 && now_pid != pid) respawned = true;
+    if (respawned) {
+      accel_intrinsics::GetIntrinsics srv;
+      if (ros::service::call("/calibration/get_intrinsics", srv) && srv.response.success) {
+        res = srv.response;
+        break;
+      }
+    }
+    ros::WallDuration(0.5).sleep();
+  }
+  ASSERT_TRUE(respawned) << victim << " did not come back";
+  ASSERT_TRUE(res.success) << res.message;
+  // Only a restarted calibration node restores its checkpoint.
+  EXPECT_EQ(value(status, "restored"), victim == "/calibration" ? "true" : "false");
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(res.result.positions[i], static_cast<unsigned>(steps));
+
+  // The checkpoint: every position once, in protocol order, and the run's time origin.
+  namespace core = accel_intrinsics::core;
+  core::PositionTable table = core::read_position_table_file(output_dir + "/position_table.csv");
+  ASSERT_EQ(table.rows.size(), static_cast<std::size_t>(3 * steps));
+  for (std::size_t i = 0; i < table.rows.size(); ++i) {
+    EXPECT_EQ(core::index(table.rows[i].phase), static_cast<int>(i) / steps) << "row " << i;
+    EXPECT_EQ(table.rows[i].step, i % steps) << "row " << i;
+    if (i > 0) {
+      EXPECT_GT(table.rows[i].t_start_s, table.rows[i - 1].t_end_s - 1e-9) << "row " << i;
+    }
+  }
+  const YAML::Node state = YAML::LoadFile(output_dir + "/calibration_state.yaml");
+  ASSERT_GT(first_moving_stamp, 0.0);
+  EXPECT_DOUBLE_EQ(state["time_origin_s"].as<double>(), first_moving_stamp);
+  EXPECT_TRUE(state["done"].as<bool>());
+  table.time_origin_s = state["time_origin_s"].as<double>();
+
+  // The result is the fit of exactly these dwells.
+  core::FitOptions options;  // joint, standard gravity: config/calibration.yaml
+  const core::FitResult fit = core::fit(table, options);
+  const accel_intrinsics::IntrinsicResult& r = res.result;
+  const double vec[3][3] = {{r.u.x, r.u.y, r.u.z}, {r.v.x, r.v.y, r.v.z}, {r.w.x, r.w.y, r.w.z}};
+  for (int i = 0; i < 3; ++i) {
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(vec[i][k], fit.S(i, k), 1e-12);
+    EXPECT_NEAR(r.offset[i], fit.O(i), 1e-12);
+    EXPECT_NEAR(r.responsivity[i], fit.S.row(i).norm(), 1e-12);
+  }
+  EXPECT_NEAR(r.reduced_chi2, fit.reduced_chi2, 1e-9);
+
+  // And it is as good as an uninterrupted run's.
+  stand_checks::Truth truth;
+  ASSERT_TRUE(stand_checks::load_truth("", &truth));
+  stand_checks::expect_matches_truth(r, truth, limits, "resumed");
+  std::printf("restored run: %s; %s dwells discarded, %s\n", res.message.c_str(),
+              value(status, "dwells_discarded").c_str(), value(status, "last_warning").c_str());
+}
