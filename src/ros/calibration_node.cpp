@@ -40,18 +40,6 @@ std::string position_label(core::Phase phase, std::uint32_t step, int approach) 
   return s.str();
 }
 
-// "stamp=123.456" in a gimbal controller reply: the stamp of the MOVING (or DONE) it published.
-bool parse_stamp(const std::string& message, double* stamp_s) {
-  const std::size_t at = message.rfind("stamp=");
-  if (at == std::string::npos) return false;
-  try {
-    *stamp_s = std::stod(message.substr(at + 6));
-  } catch (const std::exception&) {
-    return false;
-  }
-  return std::isfinite(*stamp_s);
-}
-
 }  // namespace
 
 void ImmediateCallbackQueue::addCallback(const ros::CallbackInterfacePtr& callback, uint64_t) {
@@ -529,17 +517,19 @@ void CalibrationNode::on_timer(const ros::TimerEvent&) {
   const std::string controller = options_.gimbal_controller;
   bool called = false, success = false;
   std::string message;
+  double stamp_s = 0.0;
   if (request.kind == ControllerRequest::Kind::Resume) {
-    nh_.setParam(controller + "/request/phase", std::string(core::phase_name(request.phase)));
-    nh_.setParam(controller + "/request/step", static_cast<int>(request.step));
-    nh_.setParam(controller + "/request/approach", request.approach);
-    nh_.setParam(controller + "/request/after", request.after);
-    nh_.setParam(controller + "/request/reason", request.reason);
-    std_srvs::Trigger srv;
-    ros::ServiceClient client = nh_.serviceClient<std_srvs::Trigger>(controller + "/resume");
+    ResumeAt srv;
+    srv.request.phase = static_cast<std::uint8_t>(core::index(request.phase));
+    srv.request.step = request.step;
+    srv.request.approach = static_cast<std::int8_t>(request.approach);
+    srv.request.after = request.after;
+    srv.request.reason = request.reason;
+    ros::ServiceClient client = nh_.serviceClient<ResumeAt>(controller + "/resume");
     called = client.waitForExistence(ros::Duration(0.5)) && client.call(srv);
     success = srv.response.success;
     message = srv.response.message;
+    stamp_s = srv.response.stamp.toSec();
   } else {
     nh_.setParam(controller + "/request/abort_reason", request.reason);
     std_srvs::Trigger srv;
@@ -548,7 +538,7 @@ void CalibrationNode::on_timer(const ros::TimerEvent&) {
     success = srv.response.success;
     message = srv.response.message;
   }
-  apply_reply(request, called, success, message);
+  apply_reply(request, called, success, message, stamp_s);
 }
 
 CalibrationNode::ControllerRequest CalibrationNode::take_request() {
@@ -563,7 +553,7 @@ CalibrationNode::ControllerRequest CalibrationNode::take_request() {
 }
 
 void CalibrationNode::apply_reply(const ControllerRequest& request, bool called, bool success,
-                                  const std::string& message) {
+                                  const std::string& message, double stamp_s) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   const std::string controller = nh_.resolveName(options_.gimbal_controller);
   if (!called) {
@@ -578,8 +568,7 @@ void CalibrationNode::apply_reply(const ControllerRequest& request, bool called,
     ROS_ERROR("calibration: asked %s to abort: %s", controller.c_str(), message.c_str());
     return;
   }
-  double stamp_s = 0.0;
-  if (!success || !parse_stamp(message, &stamp_s)) {
+  if (!success || !(std::isfinite(stamp_s) && stamp_s > 0.0)) {
     fault_ = "the gimbal controller refused to resume at " +
              position_label(request.phase, request.step, request.approach) +
              (request.after ? " (after)" : "") + ": " + message;

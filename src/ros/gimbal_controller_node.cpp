@@ -258,44 +258,26 @@ std::size_t GimbalControllerNode::find_position(core::Phase phase, std::uint32_t
   return schedule_.size();
 }
 
-bool GimbalControllerNode::on_resume(std_srvs::Trigger::Request&,
-                                     std_srvs::Trigger::Response& res) {
-  std::string phase_name, reason = "resume requested";
-  int step = 0, approach = +1;
-  bool after = false;
-  // The request's arguments, set by the caller just before the call.
-  if (!pnh_.getParam("request/phase", phase_name) || !pnh_.getParam("request/step", step)) {
+bool GimbalControllerNode::on_resume(ResumeAt::Request& req, ResumeAt::Response& res) {
+  const std::string reason = req.reason.empty() ? "resume requested" : req.reason;
+  if (req.phase > ResumeAt::Request::PHASE_Z || (req.approach != 1 && req.approach != -1)) {
     res.success = false;
-    res.message = "set " + pnh_.resolveName("request/phase") + " and " +
-                  pnh_.resolveName("request/step") + " first";
+    res.message = "phase must be 0, 1 or 2 (x, y, z) and approach +1 or -1 (got phase " +
+                  std::to_string(req.phase) + ", approach " + std::to_string(req.approach) + ")";
     return true;
   }
-  pnh_.getParam("request/approach", approach);
-  pnh_.getParam("request/after", after);
-  pnh_.getParam("request/reason", reason);
-  pnh_.deleteParam("request");
-  core::Phase phase;
-  if (phase_name == "x") {
-    phase = core::Phase::X;
-  } else if (phase_name == "y") {
-    phase = core::Phase::Y;
-  } else if (phase_name == "z") {
-    phase = core::Phase::Z;
-  } else {
-    res.success = false;
-    res.message = "request/phase must be x, y or z (got '" + phase_name + "')";
-    return true;
-  }
-  const std::size_t index =
-      step < 0 ? schedule_.size() + 1
-               : find_position(phase, static_cast<std::uint32_t>(step), approach, false);
+  const core::Phase phase = static_cast<core::Phase>(req.phase);
+  const std::size_t index = find_position(phase, req.step, req.approach, false);
   if (index >= schedule_.size()) {
     res.success = false;
-    res.message = "no position phase " + phase_name + " step " + std::to_string(step) +
-                  " approach " + std::to_string(approach) + " in the protocol";
+    res.message = std::string("no position phase ") + core::phase_name(phase) + " step " +
+                  std::to_string(req.step) + " approach " + std::to_string(req.approach) +
+                  " in the protocol";
     return true;
   }
-  res.success = resume(ros::Time::now(), after ? index + 1 : index, reason, &res.message);
+  const ros::Time now = ros::Time::now();
+  res.success = resume(now, req.after ? index + 1 : index, reason, &res.message);
+  res.stamp = now;
   return true;
 }
 

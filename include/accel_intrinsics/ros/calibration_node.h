@@ -47,6 +47,7 @@
 #include "accel_intrinsics/GetIntrinsics.h"
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/IntrinsicResult.h"
+#include "accel_intrinsics/ResumeAt.h"
 #include "accel_intrinsics/core/discrepancy.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/fit.h"
@@ -188,7 +189,7 @@ class CalibrationNode {
   void restart_assembler();
   ControllerRequest take_request();
   void apply_reply(const ControllerRequest& request, bool called, bool success,
-                   const std::string& message);
+                   const std::string& message, double stamp_s);
   void diagnose_imu(diagnostic_updater::DiagnosticStatusWrapper& status);
   void diagnose_run(diagnostic_updater::DiagnosticStatusWrapper& status);
   int approach_of_next_row(core::Phase phase, std::uint32_t step) const;

@@ -6,11 +6,10 @@
 //
 // Resume: the first run can begin at any position of the schedule (~resume_phase, ~resume_step,
 // ~resume_approach at start-up: the next start or autostart begins there), and a running,
-// finished or aborted protocol can be moved to one: gimbal_controller/resume reads its
-// arguments from ~request/phase, ~request/step, ~request/approach, ~request/after (the position
-// after that one) and ~request/reason at call time (set them, then call; they are deleted).
-// The reply ends with "stamp=<t>", the stamp of the MOVING (or DONE) it published.
-// gimbal_controller/abort takes its reason from ~request/abort_reason when set.
+// finished or aborted protocol can be moved to one: gimbal_controller/resume (srv/ResumeAt.srv:
+// phase, step, approach, after = the position after that one, reason) answers with the stamp of
+// the MOVING (or DONE) it published. gimbal_controller/abort (std_srvs/Trigger, as start) takes
+// its reason from ~request/abort_reason when set.
 #pragma once
 
 #include <diagnostic_updater/diagnostic_updater.h>
@@ -23,6 +22,7 @@
 #include <vector>
 
 #include "accel_intrinsics/GimbalCommand.h"
+#include "accel_intrinsics/ResumeAt.h"
 #include "accel_intrinsics/core/protocol.h"
 #include "accel_intrinsics/ros/gimbal_driver.h"
 
@@ -85,7 +85,7 @@ class GimbalControllerNode {
   void on_timer(const ros::TimerEvent& event);
   bool on_start(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool on_abort(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
-  bool on_resume(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool on_resume(ResumeAt::Request& req, ResumeAt::Response& res);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
   void begin_move(std::size_t index, const ros::Time& now);
   void publish_command(const ros::Time& now, std::uint8_t state, const core::ScheduledPosition& p);
