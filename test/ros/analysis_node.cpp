@@ -22,11 +22,18 @@ TEST(AnalysisNode, NamesTheHiddenEffectAndTheCertificateSaysWhichModel) {
   const accel_intrinsics::GetIntrinsics::Response res = stand_checks::get_intrinsics("");
   ASSERT_TRUE(res.success) << res.message;
   const accel_intrinsics::IntrinsicResult& r = res.result;
-  EXPECT_EQ(r.model, "joint+quadratic_nonlinearity[u]") << res.message;
-  ASSERT_EQ(r.effect_names.size(), 1u);
+  // The hidden effect is named first. After it, each further screening step may still name a
+  // noise artefact in alpha = 2.5 % of runs by design (the run is not bit-reproducible: the
+  // simulated clock follows wall time), so one extra name is tolerated; two would happen in
+  // about 0.06 % of runs. The false-alarm rate itself is checked by Monte Carlo in core_tests.
+  EXPECT_EQ(r.model.rfind("joint+quadratic_nonlinearity[u]", 0), 0u) << res.message;
+  ASSERT_GE(r.effect_names.size(), 1u);
+  EXPECT_LE(r.effect_names.size(), 2u) << res.message;
+  if (r.effect_names.size() > 1)
+    std::printf("also named (chance at 2.5 %%): %s\n", r.model.c_str());
   EXPECT_EQ(r.effect_names[0], "quadratic_nonlinearity");
   EXPECT_EQ(r.effect_targets[0], "u");
-  ASSERT_EQ(r.effect_std.size(), 1u);
+  ASSERT_EQ(r.effect_std.size(), r.effect_names.size());
   EXPECT_GT(r.effect_std[0], 0.0);
   EXPECT_LE(std::abs(r.effect_values[0] - effect_value), 4.0 * r.effect_std[0])
       << r.effect_values[0] << " +- " << r.effect_std[0];
@@ -41,7 +48,7 @@ TEST(AnalysisNode, NamesTheHiddenEffectAndTheCertificateSaysWhichModel) {
   EXPECT_EQ(j["certificate_policy"], "refit");
   EXPECT_EQ(j["base_model"], "joint");
   EXPECT_EQ(j["refit_model"], r.model);
-  ASSERT_EQ(j["effects"].size(), 1u) << j["effects"].dump(2);
+  ASSERT_EQ(j["effects"].size(), r.effect_names.size()) << j["effects"].dump(2);
   EXPECT_EQ(j["effects"][0]["name"], "quadratic_nonlinearity");
   EXPECT_EQ(j["effects"][0]["target"], "u");
   EXPECT_DOUBLE_EQ(j["effects"][0]["value"].get<double>(), r.effect_values[0]);
