@@ -101,8 +101,13 @@ void DwellAssembler::release_until(double stamp_s) {
 }
 
 void DwellAssembler::process(const Event& event) {
-  if (event.is_command) process_command(event.command);
-  else process_sample(event.sample);
+  if (event.is_command) {
+    if (observe_command_) observe_command_(event.command);
+    process_command(event.command);
+  } else {
+    if (observe_sample_) observe_sample_(event.sample);
+    process_sample(event.sample);
+  }
 }
 
 void DwellAssembler::process_command(const GimbalEvent& command) {

@@ -389,5 +389,95 @@ TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
   return result;
 }
 
+MoveSampleRecorder::MoveSampleRecorder(double margin_s, std::size_t max_samples)
+    : margin_s_(margin_s), max_samples_(max_samples) {}
+
+void MoveSampleRecorder::clear() {
+  commands_.clear();
+  samples_.clear();
+  recent_.clear();
+  in_move_ = false;
+  keep_until_s_ = -std::numeric_limits<double>::infinity();
+  have_phase_ = false;
+  dropped_ = 0;
+}
+
+void MoveSampleRecorder::keep(const ImuSample& sample) {
+  if (samples_.size() < max_samples_) {
+    samples_.push_back(sample);
+  } else {
+    ++dropped_;
+  }
+}
+
+void MoveSampleRecorder::add_command(const GimbalEvent& event) {
+  commands_.push_back(event);
+  if (event.state == GimbalState::Moving) {
+    // Only moves within a phase have a trajectory (a remount has none): as the estimator.
+    in_move_ = have_phase_ && event.phase == last_phase_;
+    if (in_move_) {
+      for (const ImuSample& s : recent_) {
+        if (s.stamp_s >= event.stamp_s - margin_s_) keep(s);
+      }
+    }
+    recent_.clear();
+  } else if (event.state == GimbalState::Settled) {
+    if (in_move_) keep_until_s_ = event.stamp_s + margin_s_;
+    in_move_ = false;
+    have_phase_ = true;
+    last_phase_ = event.phase;
+  } else {
+    in_move_ = false;
+  }
+}
+
+void MoveSampleRecorder::add_sample(const ImuSample& sample) {
+  if (in_move_ || sample.stamp_s <= keep_until_s_) {
+    keep(sample);
+    return;
+  }
+  // At rest: remember the last margin_s in case a move starts next.
+  recent_.push_back(sample);
+  while (!recent_.empty() && recent_.front().stamp_s < sample.stamp_s - margin_s_) {
+    recent_.pop_front();
+  }
+}
+
+TimingLagEstimate screen_timing_lag(const std::vector<GimbalEvent>& commands,
+                                    const std::vector<ImuSample>& samples,
+                                    const PositionTable& table, const FitResult& after_fit,
+                                    nlohmann::json* analysis_json) {
+  const TimingLagEstimate lag = estimate_timing_lag(commands, samples, table, after_fit,
+                                                    timing_lag_options_beside_screen());
+  add_timing_lag(lag, analysis_json);
+  return lag;
+}
+
+TimingLagEstimateOptions timing_lag_options_beside_screen() {
+  TimingLagEstimateOptions options;
+  options.alpha = kTimingLagAlphaBesideScreen;
+  return options;
+}
+
+void add_timing_lag(const TimingLagEstimate& lag, nlohmann::json* analysis_json) {
+  nlohmann::json& j = *analysis_json;
+  j["timing_lag"] = {{"ok", lag.ok},
+                     {"message", lag.message},
+                     {"value", lag.lag_s},
+                     {"std", lag.std_s},
+                     {"p_value", lag.p_value},
+                     {"detected", lag.detected},
+                     {"lr_chi2", lag.lr_chi2},
+                     {"samples_used", lag.samples_used},
+                     {"detection_threshold", lag.detection_threshold_s}};
+  if (lag.detected) {
+    j["effects"].push_back({{"name", "timing_lag"},
+                            {"target", "all"},
+                            {"value", lag.lag_s},
+                            {"std", lag.std_s},
+                            {"p_value", lag.p_value}});
+  }
+}
+
 }  // namespace core
 }  // namespace accel_intrinsics

@@ -97,12 +97,7 @@ struct Input {
 // --model says for the main result. Its keys (effects [{name, target, value, std, p_value, ...}],
 // ambiguous [...], gap {before, after}, screening, ...) are added to the JSON next to the main
 // result's (never replacing one), its report follows the result table. On a bag the timing lag
-// is screened too, from the raw streams.
-//
-// False alarms: the dwell screen spends AnalysisOptions::alpha (2.5 %) family-wise, the timing
-// lag test kTimingLagAlpha, so an effect-free bag names anything in at most 3.5 % of runs (the
-// requirement is 5 %; the margin keeps a check on 200 runs from failing by chance).
-constexpr double kTimingLagAlpha = 0.01;
+// is screened too, from the raw streams (core::screen_timing_lag, with its false-alarm budget).
 
 void run_analysis(const Input& input, const core::FitOptions& options, nlohmann::json& json,
                   std::ostream& text) {
@@ -123,26 +118,8 @@ void run_analysis(const Input& input, const core::FitOptions& options, nlohmann:
 
   // Timing lag shows only in the raw streams around the moves, which a bag has.
   if (!input.from_bag) return;
-  core::TimingLagEstimateOptions lag_options;
-  lag_options.alpha = kTimingLagAlpha;
-  const core::TimingLagEstimate lag = core::estimate_timing_lag(
-      input.raw_commands, input.raw_samples, table, analysis.after_fit, lag_options);
-  json["timing_lag"] = {{"ok", lag.ok},
-                        {"message", lag.message},
-                        {"value", lag.lag_s},
-                        {"std", lag.std_s},
-                        {"p_value", lag.p_value},
-                        {"detected", lag.detected},
-                        {"lr_chi2", lag.lr_chi2},
-                        {"samples_used", lag.samples_used},
-                        {"detection_threshold", lag.detection_threshold_s}};
-  if (lag.detected) {
-    json["effects"].push_back({{"name", "timing_lag"},
-                               {"target", "all"},
-                               {"value", lag.lag_s},
-                               {"std", lag.std_s},
-                               {"p_value", lag.p_value}});
-  }
+  const core::TimingLagEstimate lag = core::screen_timing_lag(
+      input.raw_commands, input.raw_samples, table, analysis.after_fit, &json);
   text << "  timing lag (raw streams): " << (lag.ok ? "" : "no estimate: ") << lag.message << "\n";
 }
 

@@ -167,7 +167,7 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
 CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
                                  const CalibrationOptions& options)
     : nh_(nh), pnh_(pnh), options_(options), assembler_(options.assembler) {
-  assembler_.set_dwell_callback([this](const core::DwellRecord& row) { on_dwell(row); });
+  connect_assembler();
   if (options_.resume) load_checkpoint();
   result_pub_ = nh_.advertise<IntrinsicResult>(names::kResultTopic, 1, true);
   status_pub_ =
@@ -458,7 +458,7 @@ void CalibrationNode::update(const ros::Time& now) {
     pending_restart_ = false;
     counters_before_ = counters();
     assembler_.reset();
-    assembler_.set_dwell_callback([this](const core::DwellRecord& row) { on_dwell(row); });
+    connect_assembler();
     warned_ = core::AssemblerCounters();
     live_in_dwell_ = false;
     announced_.clear();
@@ -478,6 +478,7 @@ void CalibrationNode::begin_resume(const std::string& cause) {
   request_.kind = ControllerRequest::Kind::Resume;
   request_after_ = ros::Time();
   blackouts_.push_back(Blackout());  // everything until the rewound MOVING
+  move_samples_.clear();             // the lag is estimated on the moves after it
   if (!table_.rows.empty()) {
     const core::DwellRecord& last = table_.rows.back();
     request_.phase = last.phase;
@@ -588,7 +589,7 @@ void CalibrationNode::reset(const std::string& reason) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   const std::size_t dwells = table_.rows.size();
   assembler_.reset();
-  assembler_.set_dwell_callback([this](const core::DwellRecord& row) { on_dwell(row); });
+  connect_assembler();
   done_pending_ = false;
   has_result_ = false;
   have_fit_ = false;
@@ -692,6 +693,7 @@ void CalibrationNode::raise_fault(const std::string& what, core::Phase phase, st
     Blackout b;
     b.begin_s = dwell_start_s;
     blackouts_.push_back(b);
+    move_samples_.clear();  // the lag is estimated on the moves after the rewind
     request_ = ControllerRequest();
     request_.kind = ControllerRequest::Kind::Resume;
     request_.phase = phase;
@@ -856,23 +858,33 @@ bool CalibrationNode::on_analyze(std_srvs::Trigger::Request&, std_srvs::Trigger:
   bool have_fit = false;
   core::FitResult base;
   std::uint64_t generation = 0;
+  std::vector<core::GimbalEvent> commands;
+  std::vector<core::ImuSample> move_samples;
   {
     std::lock_guard<std::recursive_mutex> lock(mutex_);
     table = table_;
     have_fit = have_fit_;
     if (have_fit) base = base_fit_;
     generation = analysis_generation_;
+    commands = move_samples_.commands();
+    move_samples = move_samples_.samples();
   }
   try {
     if (!have_fit) base = core::fit(table, options_.fit);
     const core::AnalysisResult analysis = core::analyze(table, analysis_options());
+    std::unique_ptr<core::TimingLagEstimate> lag;
+    if (!commands.empty()) {
+      lag.reset(new core::TimingLagEstimate(
+          core::estimate_timing_lag(commands, move_samples, table, analysis.after_fit,
+                                    core::timing_lag_options_beside_screen())));
+    }
     std::lock_guard<std::recursive_mutex> lock(mutex_);
     if (generation != analysis_generation_) {
       res.success = false;
       res.message = "analysis discarded: the run was reset or fitted again while it ran";
       return true;
     }
-    res.message = apply_analysis(analysis, base, ros::Time::now());
+    res.message = apply_analysis(analysis, base, lag.get(), ros::Time::now());
     res.success = true;
   } catch (const std::exception& e) {
     res.success = false;
@@ -927,6 +939,16 @@ core::AnalysisOptions CalibrationNode::analysis_options() const {
   return options;
 }
 
+void CalibrationNode::connect_assembler() {
+  move_samples_.clear();
+  assembler_.set_dwell_callback([this](const core::DwellRecord& row) { on_dwell(row); });
+  if (options_.analyze) {
+    assembler_.set_release_observers(
+        [this](const core::GimbalEvent& e) { move_samples_.add_command(e); },
+        [this](const core::ImuSample& sample) { move_samples_.add_sample(sample); });
+  }
+}
+
 void CalibrationNode::start_analysis(const ros::Time& now) {
   // Under mutex_ (lock order: mutex_, then job_mutex_). A newer fit supersedes an analysis
   // still running for an older one.
@@ -938,6 +960,8 @@ void CalibrationNode::start_analysis(const ros::Time& now) {
     job_.table = table_;
     job_.base = base_fit_;
     job_.stamp = now;
+    job_.commands = move_samples_.commands();
+    job_.move_samples = move_samples_.samples();
     job_pending_ = true;  // replaces a job not yet started (same run or a discarded one)
   }
   job_cv_.notify_one();
@@ -958,9 +982,16 @@ void CalibrationNode::analysis_loop() {
     }
     // Without the lock: IMU handling, commands and services go on meanwhile.
     std::unique_ptr<core::AnalysisResult> analysis;
+    std::unique_ptr<core::TimingLagEstimate> lag;
     std::string error;
     try {
       analysis.reset(new core::AnalysisResult(core::analyze(job.table, analysis_options())));
+      // Timing lag from the moves (none after a checkpoint restore: the samples are not saved).
+      if (!job.commands.empty()) {
+        lag.reset(new core::TimingLagEstimate(core::estimate_timing_lag(
+            job.commands, job.move_samples, job.table, analysis->after_fit,
+            core::timing_lag_options_beside_screen())));
+      }
     } catch (const std::exception& e) {
       error = e.what();
     } catch (...) {
@@ -974,7 +1005,7 @@ void CalibrationNode::analysis_loop() {
     analysis_running_ = false;
     if (analysis) {
       try {
-        const std::string summary = apply_analysis(*analysis, job.base, job.stamp);
+        const std::string summary = apply_analysis(*analysis, job.base, lag.get(), job.stamp);
         ROS_INFO("calibration: analysis: %s", summary.c_str());
       } catch (const std::exception& e) {
         error = e.what();
@@ -995,8 +1026,11 @@ void CalibrationNode::analysis_loop() {
 }
 
 std::string CalibrationNode::apply_analysis(const core::AnalysisResult& analysis,
-                                            const core::FitResult& base, const ros::Time& now) {
+                                            const core::FitResult& base,
+                                            const core::TimingLagEstimate* lag,
+                                            const ros::Time& now) {
   nlohmann::json j = core::analysis_to_json(analysis);
+  if (lag != nullptr) core::add_timing_lag(*lag, &j);
   const bool refit = options_.certificate_refit && !analysis.effects.empty();
   certificate_fit_ = refit ? analysis.after_fit : base;
   if (have_fit_) {
@@ -1036,6 +1070,7 @@ std::string CalibrationNode::apply_analysis(const core::AnalysisResult& analysis
       << e.p_value << ")";
   }
   s << "; certificate: " << certificate_fit_.model_label();
+  if (lag != nullptr) s << "; " << (lag->ok ? "" : "timing lag: no estimate: ") << lag->message;
   return s.str();
 }
 

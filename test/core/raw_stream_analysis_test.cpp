@@ -396,6 +396,80 @@ TEST(TimingLag, NoiseScaleFromResidualsWhenTheTableHasNoStd) {
   EXPECT_LT(std::abs(unknown.lag_s - 0.004), 3.0 * unknown.std_s);
 }
 
+
+// The calibration node keeps only what the estimator reads (MoveSampleRecorder fed by the
+// assembler's release observers, messages arriving out of order within the reorder window): the
+// estimate from that is the estimate from the whole recording, from a fraction of the samples.
+TEST(MoveSampleRecorder, GivesTheEstimateOfTheWholeRecording) {
+  std::mt19937_64 rng(77);
+  for (int k = 0; k < 3; ++k) {
+    SimulationOptions sim = simulation(random_device(rng), k == 0 ? 0.0 : 0.004 * k, 200.0, 50 + k);
+    sim.protocol.steps_per_phase = 12;
+    sim.protocol.two_way = k == 2;
+    sim.protocol.closing_position = k == 1;
+    const SimulatedRun run = simulate_and_fit(sim);
+
+    AssemblerOptions options;
+    options.reorder_window_s = 0.3;
+    DwellAssembler assembler(options);
+    MoveSampleRecorder recorder;
+    assembler.set_release_observers(
+        [&recorder](const GimbalEvent& e) { recorder.add_command(e); },
+        [&recorder](const ImuSample& s) { recorder.add_sample(s); });
+    // Arrival order: commands 0.2 s late (inside the reorder window), samples in order.
+    std::vector<std::pair<double, int>> arrivals;  // (arrival time, index: >= 0 sample, < 0 command)
+    for (std::size_t i = 0; i < run.recording.samples.size(); ++i)
+      arrivals.emplace_back(run.recording.samples[i].stamp_s, static_cast<int>(i));
+    for (std::size_t i = 0; i < run.recording.commands.size(); ++i)
+      arrivals.emplace_back(run.recording.commands[i].stamp_s + 0.2, -1 - static_cast<int>(i));
+    std::stable_sort(arrivals.begin(), arrivals.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& a : arrivals) {
+      if (a.second >= 0) {
+        assembler.add_sample(run.recording.samples[static_cast<std::size_t>(a.second)]);
+      } else {
+        assembler.add_command(run.recording.commands[static_cast<std::size_t>(-1 - a.second)]);
+      }
+    }
+    assembler.flush();
+    ASSERT_EQ(assembler.table().rows.size(), run.table.rows.size());
+    EXPECT_EQ(recorder.commands().size(), run.recording.commands.size());
+    EXPECT_EQ(recorder.samples_dropped(), 0u);
+    EXPECT_LT(recorder.samples().size(), run.recording.samples.size() / 2);
+
+    const TimingLagEstimate whole = estimate_timing_lag(
+        run.recording.commands, run.recording.samples, run.table, run.base);
+    const TimingLagEstimate kept =
+        estimate_timing_lag(recorder.commands(), recorder.samples(), run.table, run.base);
+    ASSERT_TRUE(whole.ok) << whole.message;
+    ASSERT_TRUE(kept.ok) << kept.message;
+    EXPECT_EQ(kept.samples_used, whole.samples_used);
+    EXPECT_EQ(kept.moves_used, whole.moves_used);
+    EXPECT_NEAR(kept.lag_s, whole.lag_s, 1e-12);
+    EXPECT_NEAR(kept.std_s, whole.std_s, 1e-12);
+  }
+}
+
+TEST(MoveSampleRecorder, StopsAtItsCapAndCounts) {
+  MoveSampleRecorder recorder(0.1, 10);
+  GimbalEvent e;
+  e.state = GimbalState::Settled;
+  recorder.add_command(e);  // at rest in phase x
+  e.state = GimbalState::Moving;
+  e.stamp_s = 1.0;
+  recorder.add_command(e);  // a move within the phase: keep everything until SETTLED + margin
+  for (int i = 0; i < 25; ++i) {
+    ImuSample s;
+    s.stamp_s = 1.0 + 0.01 * i;
+    recorder.add_sample(s);
+  }
+  EXPECT_EQ(recorder.samples().size(), 10u);
+  EXPECT_EQ(recorder.samples_dropped(), 15u);
+  recorder.clear();
+  EXPECT_TRUE(recorder.samples().empty());
+  EXPECT_TRUE(recorder.commands().empty());
+}
+
 }  // namespace
 }  // namespace core
 }  // namespace accel_intrinsics

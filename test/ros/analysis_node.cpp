@@ -13,6 +13,8 @@ TEST(AnalysisNode, NamesTheHiddenEffectAndTheCertificateSaysWhichModel) {
   pnh.getParam("timeout_s", timeout_s);
   pnh.getParam("steps", steps);
   pnh.getParam("effect_value", effect_value);
+  double lag_value = 0.002;
+  pnh.getParam("lag_value", lag_value);
   ASSERT_TRUE(pnh.getParam("output_dir", output_dir));
   ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
 
@@ -48,11 +50,24 @@ TEST(AnalysisNode, NamesTheHiddenEffectAndTheCertificateSaysWhichModel) {
   EXPECT_EQ(j["certificate_policy"], "refit");
   EXPECT_EQ(j["base_model"], "joint");
   EXPECT_EQ(j["refit_model"], r.model);
-  ASSERT_EQ(j["effects"].size(), r.effect_names.size()) << j["effects"].dump(2);
+  // The dwell effects (which enter the certificate), then the timing lag from the moves.
+  ASSERT_EQ(j["effects"].size(), r.effect_names.size() + 1) << j["effects"].dump(2);
   EXPECT_EQ(j["effects"][0]["name"], "quadratic_nonlinearity");
   EXPECT_EQ(j["effects"][0]["target"], "u");
   EXPECT_DOUBLE_EQ(j["effects"][0]["value"].get<double>(), r.effect_values[0]);
   ASSERT_TRUE(j.contains("gap"));
+  // The live node kept the samples around the moves: the hidden lag is estimated and named.
+  ASSERT_TRUE(j.contains("timing_lag")) << j.dump(2);
+  const nlohmann::json& lag = j["timing_lag"];
+  ASSERT_TRUE(lag["ok"].get<bool>()) << lag.dump(2);
+  EXPECT_TRUE(lag["detected"].get<bool>()) << lag.dump(2);
+  EXPECT_GT(lag["std"].get<double>(), 0.0);
+  EXPECT_LE(std::abs(lag["value"].get<double>() - lag_value), 4.0 * lag["std"].get<double>())
+      << lag.dump(2);
+  const nlohmann::json& last = j["effects"][j["effects"].size() - 1];
+  EXPECT_EQ(last["name"], "timing_lag");
+  EXPECT_EQ(last["target"], "all");
+  std::printf("timing lag from the live node: %s\n", lag["message"].get<std::string>().c_str());
   std::ifstream file(output_dir + "/analysis.json");
   ASSERT_TRUE(file.good());
   EXPECT_EQ(nlohmann::json::parse(file)["certificate_model"], r.model);
@@ -69,6 +84,8 @@ TEST(AnalysisNode, NamesTheHiddenEffectAndTheCertificateSaysWhichModel) {
       << analyze.response.message;
   EXPECT_NE(analyze.response.message.find("certificate: joint+quadratic_nonlinearity[u]"),
             std::string::npos)
+      << analyze.response.message;
+  EXPECT_NE(analyze.response.message.find("timing_lag:"), std::string::npos)
       << analyze.response.message;
 }
 

@@ -64,6 +64,14 @@ class DwellAssembler {
 
   // Called for every completed dwell, in stamp order.
   void set_dwell_callback(DwellCallback callback) { on_dwell_ = std::move(callback); }
+  // Called for every command and every finite, in-order sample as it is released in stamp order
+  // (before it is assigned to a dwell): what a raw-stream analysis needs (MoveSampleRecorder).
+  using CommandObserver = std::function<void(const GimbalEvent&)>;
+  using SampleObserver = std::function<void(const ImuSample&)>;
+  void set_release_observers(CommandObserver on_command, SampleObserver on_sample) {
+    observe_command_ = std::move(on_command);
+    observe_sample_ = std::move(on_sample);
+  }
 
   void add_command(const GimbalEvent& event);
   void add_sample(const ImuSample& sample);
@@ -102,6 +110,8 @@ class DwellAssembler {
 
   AssemblerOptions options_;
   DwellCallback on_dwell_;
+  CommandObserver observe_command_;
+  SampleObserver observe_sample_;
   std::priority_queue<Event, std::vector<Event>, Later> pending_;
   std::uint64_t next_sequence_ = 0;
   double newest_stamp_s_;

@@ -21,6 +21,9 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <deque>
+#include <limits>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -114,6 +117,37 @@ struct TimingLagEstimate {
   Effect effect() const;
 };
 
+// What estimate_timing_lag needs of a live run, in bounded memory: every gimbal event, and the
+// samples near the moves within a phase ([MOVING - margin_s, SETTLED + margin_s]), not the
+// dwells' samples in between. Fed in stamp order (DwellAssembler::set_release_observers). Keeps
+// at most max_samples samples; later ones are counted in samples_dropped (the estimate then
+// uses the moves recorded before).
+class MoveSampleRecorder {
+ public:
+  explicit MoveSampleRecorder(double margin_s = TimingLagEstimateOptions().margin_s,
+                              std::size_t max_samples = 1000000);
+  void add_command(const GimbalEvent& event);
+  void add_sample(const ImuSample& sample);
+  void clear();
+
+  const std::vector<GimbalEvent>& commands() const { return commands_; }
+  const std::vector<ImuSample>& samples() const { return samples_; }
+  std::size_t samples_dropped() const { return dropped_; }
+
+ private:
+  double margin_s_;
+  std::size_t max_samples_;
+  std::vector<GimbalEvent> commands_;
+  std::vector<ImuSample> samples_;
+  std::deque<ImuSample> recent_;  // the last margin_s of dwell samples, for the next MOVING
+  bool in_move_ = false;          // between a within-phase MOVING and its SETTLED
+  double keep_until_s_ = -std::numeric_limits<double>::infinity();  // SETTLED + margin
+  bool have_phase_ = false;
+  Phase last_phase_ = Phase::X;
+  std::size_t dropped_ = 0;
+  void keep(const ImuSample& sample);
+};
+
 // The estimator. `base_fit` supplies the device (S, O and any fitted effect terms; its 12x12
 // covariance of S and O enters the uncertainty and the test); `time_origin_s` is t0 of the drift
 // term (NaN: the first command); `sample_sigma` the per-sample noise of u, v, w (e.g.
@@ -142,6 +176,22 @@ TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
                                       const std::vector<ImuSample>& samples,
                                       const PositionTable& table, const FitResult& base_fit,
                                       const TimingLagEstimateOptions& options = {});
+
+// The timing lag beside the discrepancy analysis of the dwells (offline_fit --analyze on a bag,
+// the calibration node's analysis): estimated with `after_fit` (the analysis's refit) at
+// alpha = kTimingLagAlphaBesideScreen, written under the key "timing_lag" of `analysis_json`
+// ({ok, message, value, std, p_value, detected, lr_chi2, samples_used, detection_threshold}) and
+// appended to its "effects" ({name: timing_lag, target: all, value, std, p_value}) when detected.
+// False alarms: the dwell screen spends AnalysisOptions::alpha (2.5 %) family-wise and this test
+// 1 %, so an effect-free run names anything in at most 3.5 % of runs (the requirement is 5 %; the
+// margin keeps a check on 200 runs from failing by chance).
+constexpr double kTimingLagAlphaBesideScreen = 0.01;
+TimingLagEstimateOptions timing_lag_options_beside_screen();
+void add_timing_lag(const TimingLagEstimate& lag, nlohmann::json* analysis_json);
+TimingLagEstimate screen_timing_lag(const std::vector<GimbalEvent>& commands,
+                                    const std::vector<ImuSample>& samples,
+                                    const PositionTable& table, const FitResult& after_fit,
+                                    nlohmann::json* analysis_json);
 
 }  // namespace core
 }  // namespace accel_intrinsics

@@ -51,6 +51,7 @@
 #include "accel_intrinsics/core/discrepancy.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/raw_stream_analysis.h"
 
 namespace accel_intrinsics {
 
@@ -145,7 +146,10 @@ class CalibrationNode {
   // Publishes an analysis of table_ (latched topic, analysis.json) and sets the certificate by
   // the policy; returns a one-line summary. Under the lock; the analysis itself ran without it.
   std::string apply_analysis(const core::AnalysisResult& analysis, const core::FitResult& base,
-                             const ros::Time& now);
+                             const core::TimingLagEstimate* lag, const ros::Time& now);
+  // The assembler's callbacks: dwells to on_dwell, and (with analyze) the released stream to
+  // move_samples_. After every assembler reset.
+  void connect_assembler();
   // Analysis worker: run_fit() hands it a copy of the table; it analyzes without the lock, then
   // applies the result under the lock unless a reset bumped the generation meanwhile.
   struct AnalysisJob {
@@ -153,6 +157,9 @@ class CalibrationNode {
     core::PositionTable table;
     core::FitResult base;
     ros::Time stamp;
+    // Raw streams around the moves (MoveSampleRecorder), for the timing lag.
+    std::vector<core::GimbalEvent> commands;
+    std::vector<core::ImuSample> move_samples;
   };
   void start_analysis(const ros::Time& now);
   void analysis_loop();
@@ -205,6 +212,9 @@ class CalibrationNode {
   mutable std::recursive_mutex mutex_;
   ImmediateCallbackQueue immediate_queue_;
   core::DwellAssembler assembler_;
+  // With analyze: the gimbal events and the samples near the moves of the current run, which the
+  // timing-lag estimate reads (bounded; cleared at a reset and when a resume rewinds the run).
+  core::MoveSampleRecorder move_samples_;
   ros::Subscriber command_sub_, imu_sub_, progress_sub_;
   ros::Publisher result_pub_, status_pub_, analysis_pub_;
   ros::ServiceServer get_srv_, reset_srv_, analyze_srv_;
