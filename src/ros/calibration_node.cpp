@@ -40,6 +40,17 @@ std::string position_label(core::Phase phase, std::uint32_t step, int approach) 
   return s.str();
 }
 
+// The timing lag of the recorded moves, beside an analysis whose refit is `after_fit`; null when
+// no gimbal event was recorded (analyze off, or nothing since a reset or a rewind).
+std::unique_ptr<core::TimingLagEstimate> estimate_lag(
+    const std::vector<core::GimbalEvent>& commands, const std::vector<core::ImuSample>& samples,
+    const core::PositionTable& table, const core::FitResult& after_fit) {
+  if (commands.empty()) return nullptr;
+  return std::unique_ptr<core::TimingLagEstimate>(new core::TimingLagEstimate(
+      core::estimate_timing_lag(commands, samples, table, after_fit,
+                                core::timing_lag_options_beside_screen())));
+}
+
 }  // namespace
 
 void ImmediateCallbackQueue::addCallback(const ros::CallbackInterfacePtr& callback, uint64_t) {
@@ -872,12 +883,8 @@ bool CalibrationNode::on_analyze(std_srvs::Trigger::Request&, std_srvs::Trigger:
   try {
     if (!have_fit) base = core::fit(table, options_.fit);
     const core::AnalysisResult analysis = core::analyze(table, analysis_options());
-    std::unique_ptr<core::TimingLagEstimate> lag;
-    if (!commands.empty()) {
-      lag.reset(new core::TimingLagEstimate(
-          core::estimate_timing_lag(commands, move_samples, table, analysis.after_fit,
-                                    core::timing_lag_options_beside_screen())));
-    }
+    const std::unique_ptr<core::TimingLagEstimate> lag =
+        estimate_lag(commands, move_samples, table, analysis.after_fit);
     std::lock_guard<std::recursive_mutex> lock(mutex_);
     if (generation != analysis_generation_) {
       res.success = false;
@@ -986,12 +993,7 @@ void CalibrationNode::analysis_loop() {
     std::string error;
     try {
       analysis.reset(new core::AnalysisResult(core::analyze(job.table, analysis_options())));
-      // Timing lag from the moves (none after a checkpoint restore: the samples are not saved).
-      if (!job.commands.empty()) {
-        lag.reset(new core::TimingLagEstimate(core::estimate_timing_lag(
-            job.commands, job.move_samples, job.table, analysis->after_fit,
-            core::timing_lag_options_beside_screen())));
-      }
+      lag = estimate_lag(job.commands, job.move_samples, job.table, analysis->after_fit);
     } catch (const std::exception& e) {
       error = e.what();
     } catch (...) {

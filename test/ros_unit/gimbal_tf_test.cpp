@@ -30,6 +30,13 @@ core::Effect effect(core::EffectKind kind, int target, double value) {
   return e;
 }
 
+// The values of the effect terms, in order (the model's parameter vector).
+std::vector<double> values_of(const std::vector<core::Effect>& effects) {
+  std::vector<double> values;
+  for (const auto& e : effects) values.push_back(e.value);
+  return values;
+}
+
 // R_world_dut as a tf listener sees it: the controller's message through tf2's BufferCore.
 Eigen::Matrix3d through_tf(const ai::GimbalTransforms& transforms, double t_s) {
   tf2::BufferCore buffer;
@@ -77,8 +84,7 @@ TEST(GimbalTf, SimulatedGimbalWithEffectsMatchesSpecificForce) {
     effects.push_back(effect(core::EffectKind::AxisTilt, p, 0.01 * (p + 1) - 0.015));
     effects.push_back(effect(core::EffectKind::Backlash, p, 0.004));
   }
-  std::vector<double> values;
-  for (const auto& e : effects) values.push_back(e.value);
+  const std::vector<double> values = values_of(effects);
 
   ai::SimulatedGimbalOptions options;
   options.move_s = 1.0;
@@ -155,8 +161,7 @@ TEST(GimbalTf, SimulatedGimbalMovesAlongTheCoreProfile) {
   effects.push_back(effect(core::EffectKind::AngleScale, 1, -0.002));
   effects.push_back(effect(core::EffectKind::AxisTilt, 2, 0.004));
   effects.push_back(effect(core::EffectKind::Backlash, 1, 0.005));
-  std::vector<double> values;
-  for (const auto& e : effects) values.push_back(e.value);
+  const std::vector<double> values = values_of(effects);
 
   core::ProtocolOptions protocol;
   protocol.steps_per_phase = 8;
