@@ -1,0 +1,260 @@
+// One calibration run as a state machine, ROS-free (DESIGN.md section 4).
+//
+// The calibration node (and any other shell: a test, a replay tool) feeds it plain inputs and
+// carries out the actions it returns; the run never calls back into its shell:
+//
+//   inputs                              actions (returned by every input)
+//   on_command(event)          ---->    DwellAccepted   checkpoint the row, log it
+//   on_sample(sample)                   Log             a line for the shell's log
+//   on_controller_state(state)          CheckpointState rewrite the small state file
+//   tick(now_s)                         ClearCheckpoint a new run starts: old files go
+//   on_resume_reply(...)                FitNow          fit the table (core::calibrate)
+//   on_fit_finished(...)                ResumeAt        ask the gimbal controller to continue at
+//   restore(...) / reset(reason)                        a position (only from tick())
+//                                       Abort           ask the gimbal controller to abort
+//                                                       (only from tick())
+//
+// What it owns: the dwell assembler (samples -> dwells, DESIGN.md section 2), the position table
+// of accepted rows, the watchdogs (no samples during a dwell, too few samples, a dwell with
+// none), retries of a faulty position (rewind the controller; rows measured before its new
+// MOVING are discarded: "blackouts"), resume after a restart (from a checkpoint, or of the
+// gimbal controller), and the decision when to fit.
+//
+// Time: every stamp and `now_s` is in seconds of the stand's clock (ROS time; simulated time
+// under /clock). Thread safety: none; the shell serializes calls.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <map>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "accel_intrinsics/core/dwell_assembler.h"
+#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/raw_stream_analysis.h"
+
+namespace accel_intrinsics {
+namespace core {
+
+enum class RunState {
+  Idle,              // no gimbal command yet (or since a reset)
+  Running,           // the protocol runs; the gimbal moves between dwells
+  Dwelling,          // inside a dwell (latest command: SETTLED)
+  WaitingForResume,  // a position is to be measured again, or a restart resumed: the controller
+                     // has not yet confirmed the rewind
+  Fitting,           // DONE received: waiting for the reorder window, or the fit is running
+  Done,              // fitted: the result is out
+  FitFailed,         // the fit after DONE failed (too few dwells, ...)
+  Aborted,           // a watchdog or the gimbal controller aborted the run
+};
+const char* run_state_name(RunState state);
+
+struct RunOptions {
+  AssemblerOptions assembler;               // settle_discard_s, reorder_window_s
+  std::uint32_t steps = 0;                  // expected N before the first command (0: unknown)
+  int min_positions_per_phase = 3;          // for the "what is missing" message
+  double imu_timeout_s = 0.0;               // no samples this long during a dwell: fault (0: off)
+  std::uint32_t min_samples_per_dwell = 0;  // fewer samples in a dwell: fault (0: off)
+  bool retry_on_fault = false;              // on a fault: measure again (true) or abort
+  std::uint32_t max_retries = 2;            // retries of one position before aborting
+  bool record_moves = false;                // keep the samples around the moves (timing lag)
+  double request_retry_s = 0.5;             // ask an unreachable controller again after this
+};
+
+// What the run asks of the gimbal controller (ResumeAt, Abort).
+struct ControllerRequest {
+  Phase phase = Phase::X;
+  std::uint32_t step = 0;
+  int approach = +1;   // direction the position is approached from (-1: return sweep)
+  bool after = false;  // continue at the position after (phase, step, approach)
+  std::string reason;
+};
+
+struct RunAction {
+  enum class Kind {
+    DwellAccepted,    // row: append it to the checkpointed position table
+    Log,              // level, text
+    CheckpointState,  // write checkpoint_state()
+    ClearCheckpoint,  // remove the checkpoint files (a new run starts)
+    FitNow,           // fit table() (with recorded_moves() for the timing lag)
+    ResumeAt,         // request: call gimbal_controller/resume, then on_resume_reply()
+    Abort,            // request.reason: call gimbal_controller/abort
+  };
+  enum class Level { Info, Warn, Error };
+  Kind kind = Kind::Log;
+  Level level = Level::Info;
+  std::string text;
+  DwellRecord row;             // DwellAccepted
+  ControllerRequest request;   // ResumeAt, Abort
+  // FitNow: what to fit (a copy: the run may move on before the shell fits), the recorded
+  // moves (record_moves) and the ticket to hand back to fit_may_publish / on_fit_finished.
+  PositionTable table;
+  std::vector<GimbalEvent> move_commands;
+  std::vector<ImuSample> move_samples;
+  std::uint64_t fit_ticket = 0;
+};
+using RunActions = std::vector<RunAction>;
+
+// The small checkpoint beside the position table: enough to resume after a restart.
+struct CheckpointState {
+  double time_origin_s = std::numeric_limits<double>::quiet_NaN();  // t0 of the drift term
+  std::uint32_t steps = 0;
+  std::size_t rows = 0;
+  bool done = false;
+  std::string fault;
+};
+
+// A snapshot for status topics, diagnostics and services.
+struct RunStatus {
+  RunState state = RunState::Idle;
+  std::array<int, 3> dwells_per_phase{{0, 0, 0}};
+  std::uint32_t steps = 0;               // N of the run (or the expected N)
+  AssemblerCounters counters;            // over every assembler of this run (restarts included)
+  std::uint64_t commands_received = 0;
+  std::uint64_t commands_rejected = 0;   // malformed commands
+  std::string fault;                     // why the run was aborted (ours or the controller's)
+  std::string last_fault;                // the latest fault, retried or not
+  std::string fit_error;                 // why the fit failed
+  std::uint64_t retries = 0;             // positions measured again
+  std::uint64_t dwells_discarded = 0;    // measured before a rewind
+  bool restored = false;                 // rows were reloaded from a checkpoint
+  bool in_dwell = false;                 // the assembler is accumulating a dwell:
+  Phase dwell_phase = Phase::X;          //   which one,
+  std::uint32_t dwell_step = 0;
+  std::uint64_t dwell_samples = 0;       //   and its samples so far
+  bool imu_silent = false;               // no samples for imu_timeout_s during a dwell
+  double newest_sample_stamp_s = -std::numeric_limits<double>::infinity();
+};
+
+class CalibrationRun {
+ public:
+  explicit CalibrationRun(const RunOptions& options);
+
+  // A well-formed gimbal command (the shell rejects malformed ones: note_rejected_command()).
+  RunActions on_command(const GimbalEvent& event);
+  void note_rejected_command() { ++commands_rejected_; }
+  // An IMU sample (any stamp order within the reorder window).
+  RunActions on_sample(const ImuSample& sample);
+  // The gimbal controller's state on its progress topic ("IDLE", "MOVING", "SETTLED", "DONE",
+  // "ABORTED", ...); `message` carries "ABORTED: <reason>".
+  RunActions on_controller_state(const std::string& state, const std::string& message);
+  // Time passes: releases buffered messages older than now - reorder window, runs the watchdogs,
+  // decides to fit after DONE, and hands out a due controller request (ResumeAt or Abort).
+  RunActions tick(double now_s);
+  // The reply to a ResumeAt: `reached` false when the controller could not be called (asked
+  // again after request_retry_s); else `success`, its message, and the stamp of its MOVING.
+  RunActions on_resume_reply(const ControllerRequest& request, bool reached, bool success,
+                             const std::string& message, double moving_stamp_s, double now_s);
+  // The reply to an Abort: when it could not be delivered it is asked again after
+  // request_retry_s.
+  RunActions on_abort_reply(const ControllerRequest& request, bool reached,
+                            const std::string& message, double now_s);
+  // After FitNow the shell fits (core::calibrate) and asks whether the result may go out: not
+  // when a fault or a rewind came meanwhile, or a reset discarded the run. The final fit of a
+  // run that a new run replaced before it was fitted does go out (it changes nothing here).
+  bool fit_may_publish(std::uint64_t fit_ticket) const;
+  // Then it reports: published, or the fit failed with `error` (empty: withheld).
+  RunActions on_fit_finished(std::uint64_t fit_ticket, bool published, const std::string& error);
+  // Restarted from a checkpoint: its rows, state. A run that was complete is fitted at the
+  // first tick; an aborted one stays aborted; otherwise the controller is asked to continue
+  // after the last row (at its first command, or once it reports DONE).
+  RunActions restore(const PositionTable& table, const CheckpointState& state);
+  // Discards everything of the current run.
+  RunActions reset(const std::string& reason);
+
+  RunState state() const;
+  bool has_result() const { return have_result_; }
+  // `now_s` judges the IMU watchdog (imu_silent).
+  RunStatus status(double now_s) const;
+  // What get_intrinsics says while there is no result: the phases that lack dwells, and why.
+  std::string missing_message() const;
+  // The accepted rows (restored ones included) with the run's time origin.
+  const PositionTable& table() const { return table_; }
+  CheckpointState checkpoint_state() const;
+  // Gimbal events and the samples around the moves (record_moves), for the timing lag.
+  const MoveSampleRecorder& recorded_moves() const { return moves_; }
+  // The direction of approach the next row at (phase, step) would have.
+  int approach_of_next_row(Phase phase, std::uint32_t step) const;
+
+ private:
+  struct Blackout {  // rows overlapping [begin, end) were measured before a rewind
+    double begin_s = -std::numeric_limits<double>::infinity();
+    double end_s = std::numeric_limits<double>::infinity();  // stamp of the rewound MOVING
+  };
+  struct Announced {  // a dwell announced by SETTLED, to catch one with no sample at all
+    Phase phase;
+    std::uint32_t step;
+    double begin_s, end_s;
+    bool recorded;
+  };
+  enum class Pending { None, Resume, Abort };
+
+  void connect_assembler();
+  // Rows the assembler completed during the last call, processed after it returned (a fault
+  // may restart the assembler, which must not happen inside its own callback).
+  void process_completed_rows();
+  void accept_row(const DwellRecord& row);
+  void raise_fault(const std::string& what, Phase phase, std::uint32_t step, int approach,
+                   double dwell_start_s);
+  void begin_resume(const std::string& cause);
+  void restart_assembler();
+  void check_watchdogs(double now_s);
+  void emit_fit();
+  void emit(RunAction::Kind kind);
+  void warn_on_new_drops();
+  bool in_blackout(double t_start_s, double t_end_s) const;
+  bool rewind_pending() const;  // a rewind asked for or not yet confirmed
+  bool aborted() const { return !fault_.empty() || !controller_abort_.empty(); }
+  AssemblerCounters counters() const;
+  std::uint32_t steps() const { return steps_seen_ ? steps_seen_ : options_.steps; }
+  void log(RunAction::Level level, const std::string& text);
+  RunActions take_actions();
+
+  RunOptions options_;
+  DwellAssembler assembler_;
+  MoveSampleRecorder moves_;
+  std::vector<DwellRecord> completed_rows_;
+  RunActions actions_;
+  PositionTable table_;
+
+  std::uint32_t steps_seen_ = 0;
+  std::uint64_t commands_received_ = 0;
+  std::uint64_t commands_rejected_ = 0;
+  bool done_pending_ = false;  // DONE received, waiting for the reorder window
+  double done_stamp_s_ = 0.0;
+  bool fitting_ = false;       // FitNow handed out, on_fit_finished not yet called
+  std::uint64_t fit_ticket_ = 0;               // of the latest FitNow
+  std::uint64_t superseded_fit_ticket_ = 0;    // final fit of a run a new run replaced
+  bool unreached_warned_ = false;              // "controller not available" said once
+  std::uint64_t commands_in_run_ = 0;
+  bool have_result_ = false;
+  std::string fit_error_;
+  bool restored_ = false;
+  bool resume_pending_ = false;  // restored mid-protocol: rewind at the first command or DONE
+  double resume_deadline_s_ = std::numeric_limits<double>::quiet_NaN();
+  bool restore_done_ = false;    // the checkpoint says DONE: fit at the first tick
+  std::string controller_state_;
+  bool controller_restarted_ = false;
+  std::string fault_;             // the run was aborted by a watchdog: why
+  std::string controller_abort_;  // the gimbal controller said ABORTED: why
+  std::string last_fault_;
+  std::map<std::tuple<int, std::uint32_t, int>, std::uint32_t> retries_;
+  std::uint64_t retries_total_ = 0;
+  std::uint64_t rows_discarded_ = 0;
+  std::vector<Blackout> blackouts_;
+  Pending pending_ = Pending::None;
+  ControllerRequest request_;
+  double request_after_s_ = -std::numeric_limits<double>::infinity();
+  AssemblerCounters counters_before_;  // of assemblers restarted after a fault
+  AssemblerCounters warned_;           // counters at the last warning
+  bool live_in_dwell_ = false;         // arrival order: the latest command is SETTLED
+  GimbalEvent live_dwell_;
+  double newest_sample_stamp_s_ = -std::numeric_limits<double>::infinity();
+  std::vector<Announced> announced_;
+};
+
+}  // namespace core
+}  // namespace accel_intrinsics
