@@ -25,6 +25,9 @@
 
 #include "accel_intrinsics/core/discrepancy.h"
 #include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/io/analysis_report.h"
+#include "accel_intrinsics/io/atomic_file.h"
+#include "accel_intrinsics/io/residuals_csv.h"
 
 using namespace accel_intrinsics::core;
 
@@ -129,12 +132,14 @@ int write_example(const std::string& dir) {
   const PositionTable table = simulate_position_table(so);
   write_position_table_file(dir + "/example_table.csv", table);
   const AnalysisResult a = analyze(table);
-  std::ofstream(dir + "/example_analysis.json") << analysis_to_json(a).dump(2) << "\n";
-  write_residuals_csv(dir + "/example_residuals.csv", table, a.before_fit, a.after_fit);
+  accel_intrinsics::io::write_file_atomically(dir + "/example_analysis.json",
+                                              accel_intrinsics::io::analysis_json_text(a) + "\n");
+  accel_intrinsics::io::write_residuals_csv(dir + "/example_residuals.csv", table, a.before_fit,
+                                            a.after_fit);
   std::cout << "hidden: ";
   for (const Effect& e : so.truth.effects) std::cout << e.label() << " = " << e.value << "  ";
   std::cout << "\n";
-  write_analysis_report(std::cout, a);
+  accel_intrinsics::io::write_analysis_report(std::cout, a);
   std::cout << "wrote " << dir << "/example_table.csv, example_analysis.json, example_residuals.csv\n";
   return 0;
 }

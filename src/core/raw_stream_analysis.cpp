@@ -443,40 +443,10 @@ void MoveSampleRecorder::add_sample(const ImuSample& sample) {
   }
 }
 
-TimingLagEstimate screen_timing_lag(const std::vector<GimbalEvent>& commands,
-                                    const std::vector<ImuSample>& samples,
-                                    const PositionTable& table, const FitResult& after_fit,
-                                    nlohmann::json* analysis_json) {
-  const TimingLagEstimate lag = estimate_timing_lag(commands, samples, table, after_fit,
-                                                    timing_lag_options_beside_screen());
-  add_timing_lag(lag, analysis_json);
-  return lag;
-}
-
 TimingLagEstimateOptions timing_lag_options_beside_screen() {
   TimingLagEstimateOptions options;
   options.alpha = kTimingLagAlphaBesideScreen;
   return options;
-}
-
-void add_timing_lag(const TimingLagEstimate& lag, nlohmann::json* analysis_json) {
-  nlohmann::json& j = *analysis_json;
-  j["timing_lag"] = {{"ok", lag.ok},
-                     {"message", lag.message},
-                     {"value", lag.lag_s},
-                     {"std", lag.std_s},
-                     {"p_value", lag.p_value},
-                     {"detected", lag.detected},
-                     {"lr_chi2", lag.lr_chi2},
-                     {"samples_used", lag.samples_used},
-                     {"detection_threshold", lag.detection_threshold_s}};
-  if (lag.detected) {
-    j["effects"].push_back({{"name", "timing_lag"},
-                            {"target", "all"},
-                            {"value", lag.lag_s},
-                            {"std", lag.std_s},
-                            {"p_value", lag.p_value}});
-  }
 }
 
 }  // namespace core

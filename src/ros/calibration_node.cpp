@@ -13,8 +13,12 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "accel_intrinsics/core/calibrate.h"
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/io/analysis_report.h"
+#include "accel_intrinsics/io/atomic_file.h"
+#include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/conversions.h"
 #include "accel_intrinsics/ros/names.h"
 #include "accel_intrinsics/ros/params.h"
@@ -30,7 +34,6 @@ diagnostic_msgs::KeyValue kv(const std::string& key, const std::string& value) {
   return out;
 }
 
-const char* const kAccel[3] = {"u", "v", "w"};
 const char* const kPhase[3] = {"x", "y", "z"};
 
 std::string position_label(core::Phase phase, std::uint32_t step, int approach) {
@@ -1031,8 +1034,6 @@ std::string CalibrationNode::apply_analysis(const core::AnalysisResult& analysis
                                             const core::FitResult& base,
                                             const core::TimingLagEstimate* lag,
                                             const ros::Time& now) {
-  nlohmann::json j = core::analysis_to_json(analysis);
-  if (lag != nullptr) core::add_timing_lag(*lag, &j);
   const bool refit = options_.certificate_refit && !analysis.effects.empty();
   certificate_fit_ = refit ? analysis.after_fit : base;
   if (have_fit_) {
@@ -1041,24 +1042,26 @@ std::string CalibrationNode::apply_analysis(const core::AnalysisResult& analysis
     result_.header.frame_id = options_.frame_id;
     if (has_result_) result_pub_.publish(result_);
   }
-  // Which model is the certificate, and which models the analysis compared.
-  j["certificate_model"] = certificate_fit_.model_label();
-  j["certificate_policy"] = options_.certificate_refit ? "refit" : "base";
-  j["base_model"] = analysis.before_fit.model_label();
-  j["refit_model"] = analysis.after_fit.model_label();
-  j["stamp"] = now.toSec();
-  analysis_json_ = j.dump(2);
+  // The analysis document of io (which model is the certificate, which models it compared).
+  core::CalibrationReport report;
+  report.base_fit = base;
+  report.certificate = certificate_fit_;
+  report.certificate_is_refit = refit;
+  report.certificate_refit_policy = options_.certificate_refit;
+  report.analysis = analysis;
+  if (lag != nullptr) report.timing_lag = *lag;
+  io::ResultContext context;
+  context.stamp_s = now.toSec();
+  analysis_json_ = io::analysis_json_text(report, context);
   analysis_error_.clear();
   std_msgs::String msg;
   msg.data = analysis_json_;
   analysis_pub_.publish(msg);
   if (!options_.output_dir.empty()) {
-    const std::string path = analysis_path();
-    std::ofstream out(path + ".tmp", std::ios::out | std::ios::trunc);
-    out << analysis_json_ << '\n';
-    out.close();
-    if (!out || std::rename((path + ".tmp").c_str(), path.c_str()) != 0) {
-      ROS_ERROR("calibration: cannot write %s", path.c_str());
+    try {
+      io::write_file_atomically(analysis_path(), analysis_json_ + '\n');
+    } catch (const io::IoError& e) {
+      ROS_ERROR("calibration: %s", e.what());
     }
   }
   std::ostringstream s;
@@ -1077,86 +1080,22 @@ std::string CalibrationNode::apply_analysis(const core::AnalysisResult& analysis
 }
 
 void CalibrationNode::write_result_yaml(const core::FitResult& fit, const ros::Time& stamp) {
-  // (fit is the certificate: the base fit, or the refit with named effects.)
+  // (fit is the certificate: the base fit, or the refit with named effects.) One writer for the
+  // node and offline_fit: io/result_document.h.
   if (options_.output_dir.empty()) return;
-  const IntrinsicResult& r = result_;
-  YAML::Emitter y;
-  y << YAML::BeginMap;
-  y << YAML::Key << "stamp" << YAML::Value << stamp.toSec();
-  y << YAML::Key << "model" << YAML::Value << r.model;
-  auto triple = [&y](const char* key, const char* const* names, const double* values) {
-    y << YAML::Key << key << YAML::Value << YAML::BeginMap;
-    for (int i = 0; i < 3; ++i) y << YAML::Key << names[i] << YAML::Value << values[i];
-    y << YAML::EndMap;
-  };
-  const char* const kAngles[3] = {"uv", "vw", "wu"};
-  y << YAML::Precision(12);
-  triple("responsivity", kAccel, r.responsivity.data());
-  triple("responsivity_std", kAccel, r.responsivity_std.data());
-  triple("angles_deg", kAngles, r.angles_deg.data());
-  triple("angles_std_deg", kAngles, r.angles_std_deg.data());
-  y << YAML::Key << "vectors" << YAML::Value << YAML::BeginMap;
-  for (int s = 0; s < 3; ++s) {
-    y << YAML::Key << kAccel[s] << YAML::Value << YAML::Flow << YAML::BeginSeq << fit.S(s, 0)
-      << fit.S(s, 1) << fit.S(s, 2) << YAML::EndSeq;
-  }
-  y << YAML::EndMap;
-  triple("offset", kAccel, r.offset.data());
-  triple("offset_std", kAccel, r.offset_std.data());
-  y << YAML::Key << "offset_per_phase" << YAML::Value << YAML::BeginMap;
-  for (int s = 0; s < 3; ++s) {
-    y << YAML::Key << kAccel[s] << YAML::Value << YAML::Flow << YAML::BeginMap;
-    for (int p = 0; p < 3; ++p)
-      y << YAML::Key << kPhase[p] << YAML::Value << fit.offset_per_phase(s, p);
-    y << YAML::EndMap;
-  }
-  y << YAML::EndMap;
-  y << YAML::Key << "cross_sensitivity" << YAML::Value << YAML::BeginSeq;
-  for (int i = 0; i < 3; ++i) {
-    y << YAML::Flow << YAML::BeginSeq << fit.cross_sensitivity(i, 0) << fit.cross_sensitivity(i, 1)
-      << fit.cross_sensitivity(i, 2) << YAML::EndSeq;
-  }
-  y << YAML::EndSeq;
-  if (!fit.effects.empty()) {
-    y << YAML::Key << "effects" << YAML::Value << YAML::BeginSeq;
-    for (std::size_t i = 0; i < fit.effects.size(); ++i) {
-      y << YAML::Flow << YAML::BeginMap << YAML::Key << "name" << YAML::Value
-        << fit.effects[i].name() << YAML::Key << "target" << YAML::Value
-        << fit.effects[i].target_name() << YAML::Key << "value" << YAML::Value
-        << fit.effects[i].value << YAML::Key << "std" << YAML::Value
-        << (i < fit.effects_std.size() ? fit.effects_std[i] : 0.0) << YAML::EndMap;
-    }
-    y << YAML::EndSeq;
-  }
-  y << YAML::Key << "local_gravity" << YAML::Value << r.local_gravity;
-  y << YAML::Key << "reduced_chi2" << YAML::Value << r.reduced_chi2;
-  y << YAML::Key << "residual_rms" << YAML::Value << r.residual_rms;
-  y << YAML::Key << "positions" << YAML::Value << YAML::Flow << YAML::BeginMap;
-  for (int p = 0; p < 3; ++p) y << YAML::Key << kPhase[p] << YAML::Value << r.positions[p];
-  y << YAML::EndMap;
-  const core::AssemblerCounters c = counters();
-  y << YAML::Key << "samples" << YAML::Value << YAML::BeginMap;
-  y << YAML::Key << "used" << YAML::Value << c.samples_used;
-  y << YAML::Key << "dropped_outside_dwell" << YAML::Value << c.dropped_outside_dwell;
-  y << YAML::Key << "dropped_settle_discard" << YAML::Value << c.dropped_settle_discard;
-  y << YAML::Key << "dropped_non_finite" << YAML::Value << c.dropped_non_finite;
-  y << YAML::Key << "dropped_backwards" << YAML::Value << c.dropped_backwards;
-  y << YAML::Key << "dropped_late" << YAML::Value << c.dropped_late;
-  y << YAML::EndMap;
-  y << YAML::EndMap;
+  core::CalibrationReport report;
+  report.base_fit = base_fit_;
+  report.certificate = fit;
+  report.certificate_refit_policy = options_.certificate_refit;
+  report.certificate_is_refit = fit.model_label() != base_fit_.model_label();
+  io::ResultContext context;
+  context.stamp_s = stamp.toSec();
+  context.samples = counters();
   const std::string path = yaml_path();
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::out | std::ios::trunc);
-    out << "# accel_intrinsics calibration result (keys as offline_fit's JSON, DESIGN.md)\n"
-        << y.c_str() << '\n';
-    if (!out) {
-      ROS_ERROR("calibration: cannot write %s", tmp.c_str());
-      return;
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    ROS_ERROR("calibration: cannot rename %s to %s", tmp.c_str(), path.c_str());
+  try {
+    io::write_result_yaml(path, report, context);
+  } catch (const io::IoError& e) {
+    ROS_ERROR("calibration: %s", e.what());
     return;
   }
   ROS_INFO("calibration: wrote %s", path.c_str());

@@ -1,6 +1,7 @@
 // The analysis from the calibration node (test/ros/analysis_node.test).
 #include <std_msgs/String.h>
 #include <std_srvs/Trigger.h>
+#include <yaml-cpp/yaml.h>
 
 #include "stand_checks.h"
 
@@ -73,8 +74,13 @@ TEST(AnalysisNode, NamesTheHiddenEffectAndTheCertificateSaysWhichModel) {
   EXPECT_EQ(nlohmann::json::parse(file)["certificate_model"], r.model);
   std::ifstream yaml(output_dir + "/intrinsics.yaml");
   std::string text((std::istreambuf_iterator<char>(yaml)), std::istreambuf_iterator<char>());
-  EXPECT_NE(text.find("model: joint+quadratic_nonlinearity[u]"), std::string::npos) << text;
-  EXPECT_NE(text.find("quadratic_nonlinearity"), std::string::npos) << text;
+  // The refit is the certificate: its model and its fitted term (io/result_document.h keys).
+  EXPECT_NE(text.find("certificate_model: joint+quadratic_nonlinearity[u]"), std::string::npos) << text;
+  EXPECT_NE(text.find("model_label: joint+quadratic_nonlinearity[u]"), std::string::npos) << text;
+  EXPECT_NE(text.find("certificate_policy: refit"), std::string::npos) << text;
+  const YAML::Node fitted = YAML::Load(text)["fitted_effects"];
+  ASSERT_TRUE(fitted && fitted.size() == 1) << text;
+  EXPECT_EQ(fitted[0]["name"].as<std::string>(), "quadratic_nonlinearity");
 
   // On demand: the same analysis again, through the service.
   std_srvs::Trigger analyze;

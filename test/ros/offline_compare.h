@@ -10,11 +10,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 #include <xmlrpcpp/XmlRpc.h>
+#include <yaml-cpp/yaml.h>
 
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -152,6 +154,43 @@ inline void expect_equal(const accel_intrinsics::IntrinsicResult& online, const 
   }
   EXPECT_EQ(online.reduced_chi2, j["reduced_chi2"].get<double>());
   EXPECT_EQ(online.residual_rms, j["residual_rms"].get<double>());
+}
+
+// Keys only one side writes: the node's stamp and sample counters; offline_fit's input
+// description. Every other key is shared and must mean the same (io/result_document.h).
+inline bool node_only_key(const std::string& key) { return key == "stamp" || key == "samples"; }
+inline bool offline_only_key(const std::string& key) {
+  return key == "input" || key == "complete" || key == "warnings";
+}
+
+// offline_fit's JSON against the node's intrinsics.yaml: the same keys at every level and the same
+// values (numbers to the last digit, null for null), except the keys one side alone writes.
+inline void expect_same_document(const nlohmann::json& j, const YAML::Node& y, const std::string& where = "") {
+  if (j.is_object()) {
+    ASSERT_TRUE(y.IsMap()) << where;
+    std::set<std::string> json_keys, yaml_keys;
+    for (auto it = j.begin(); it != j.end(); ++it) {
+      if (!(where.empty() && offline_only_key(it.key()))) json_keys.insert(it.key());
+    }
+    for (auto it = y.begin(); it != y.end(); ++it) {
+      const std::string key = it->first.as<std::string>();
+      if (!(where.empty() && node_only_key(key))) yaml_keys.insert(key);
+    }
+    ASSERT_EQ(json_keys, yaml_keys) << "keys of '" << where << "'";
+    for (const std::string& key : json_keys) expect_same_document(j[key], y[key], where + "/" + key);
+  } else if (j.is_array()) {
+    ASSERT_TRUE(y.IsSequence()) << where;
+    ASSERT_EQ(j.size(), y.size()) << where;
+    for (std::size_t i = 0; i < j.size(); ++i) expect_same_document(j[i], y[i], where + "/" + std::to_string(i));
+  } else if (j.is_null()) {
+    EXPECT_TRUE(y.IsNull()) << where;
+  } else if (j.is_boolean()) {
+    EXPECT_EQ(y.as<bool>(), j.get<bool>()) << where;
+  } else if (j.is_number()) {
+    EXPECT_EQ(y.as<double>(), j.get<double>()) << where;
+  } else {
+    EXPECT_EQ(y.as<std::string>(), j.get<std::string>()) << where;
+  }
 }
 
 }  // namespace offline_compare

@@ -1,5 +1,6 @@
 // replay_equals_offline.test: a run of the simulated stand recorded with record.launch;
-// offline_fit on that bag equals the calibration node's online result to the last digit.
+// offline_fit on that bag equals the calibration node's online result to the last digit, and its
+// JSON has the keys and values of the node's intrinsics.yaml (one writer, io/result_document.h).
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
@@ -60,6 +61,25 @@ TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
   EXPECT_EQ(j["input"]["dropped_late"], 0);
   EXPECT_EQ(j["positions"]["x"], 6);
   oc::expect_equal(online, j);
+
+  // The node's result file: the same document as offline_fit's JSON (contract keys,
+  // fitted_effects, certificate_model, ...), value for value; only stamp and samples (node) and
+  // input, complete, warnings (offline_fit) are one side's own.
+  if (!online_dir.empty()) {
+    const std::string yaml_path = online_dir + "/intrinsics.yaml";
+    const ros::WallTime written_by = ros::WallTime::now() + ros::WallDuration(10.0);
+    while (ros::WallTime::now() < written_by && !oc::file_exists(yaml_path)) ros::WallDuration(0.1).sleep();
+    ASSERT_TRUE(oc::file_exists(yaml_path));
+    const YAML::Node node_result = YAML::LoadFile(yaml_path);
+    for (const char* key : {"model", "responsivity", "angles_deg", "vectors", "offset", "offset_per_phase",
+                            "cross_sensitivity", "local_gravity", "reduced_chi2", "residual_rms", "positions",
+                            "fitted_effects", "certificate_model", "certificate_policy", "model_label"}) {
+      EXPECT_TRUE(j.contains(key)) << key;
+    }
+    EXPECT_TRUE(node_result["stamp"] && node_result["samples"]["used"]);
+    oc::expect_same_document(j, node_result);
+    EXPECT_EQ(node_result["samples"]["used"].as<std::uint64_t>(), j["input"]["samples_used"].get<std::uint64_t>());
+  }
 
   // The dwells themselves: the node's checkpoint file and offline_fit's table, byte for byte.
   if (!online_dir.empty()) {

@@ -1,7 +1,9 @@
 // offline_fit end to end, without a roscore: the test writes bags with rosbag::Bag and CSV files,
-// runs the built offline_fit binary and checks exit status, stderr and the JSON/CSV it writes.
-// The binary is found next to this test binary (catkin puts both in devel/lib/accel_intrinsics)
-// or through the environment variable ACCEL_OFFLINE_FIT.
+// runs offline_fit in process (run_offline_fit of ros/offline_fit.h, with the arguments the
+// command line would give) and checks exit status, stderr and the JSON/CSV it writes. A few smoke
+// tests run the built binary (--help, command-line errors, one bag and one CSV run); it is found
+// next to this test binary (catkin puts both in devel/lib/accel_intrinsics) or through the
+// environment variable ACCEL_OFFLINE_FIT.
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
@@ -24,13 +26,15 @@
 #include <vector>
 
 #include "accel_intrinsics/GimbalCommand.h"
+#include "accel_intrinsics/core/calibrate.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/position_table.h"
-#include "accel_intrinsics/core/result_json.h"
 #include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/bag_input.h"
 #include "accel_intrinsics/ros/conversions.h"
+#include "accel_intrinsics/ros/offline_fit.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
@@ -101,7 +105,8 @@ struct ToolRun {
   std::string err;
 };
 
-ToolRun run_tool(const std::vector<std::string>& args, const TempDir& dir) {
+// The built binary with `args`, through the shell (the command-line smoke tests).
+ToolRun run_binary(const std::vector<std::string>& args, const TempDir& dir) {
   std::string command = quote(offline_fit_binary());
   for (const std::string& a : args) command += " " + quote(a);
   const std::string out = dir.file("stdout.txt");
@@ -112,6 +117,59 @@ ToolRun run_tool(const std::vector<std::string>& args, const TempDir& dir) {
   r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : 128 + (WIFSIGNALED(raw) ? WTERMSIG(raw) : 0);
   r.out = read_file(out);
   r.err = read_file(err);
+  return r;
+}
+
+// What the command line gives run_offline_fit for `args` (well-formed options only: values that
+// do not parse are the binary's business, see run_binary).
+ai::OfflineFitArguments parse_arguments(const std::vector<std::string>& args) {
+  ai::OfflineFitArguments a;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& flag = args[i];
+    if (flag == "--analyze") {
+      a.analyze = true;
+      continue;
+    }
+    if (i + 1 >= args.size()) {
+      ADD_FAILURE() << flag << " without a value";
+      break;
+    }
+    const std::string& value = args[++i];
+    if (flag == "--bag") {
+      a.bag = value;
+    } else if (flag == "--csv") {
+      a.csv = value;
+    } else if (flag == "--imu-topic") {
+      a.imu_topic = value;
+      a.imu_topic_given = true;
+    } else if (flag == "--command-topic") {
+      a.command_topic = value;
+      a.command_topic_given = true;
+    } else if (flag == "--gravity") {
+      a.gravity = std::stod(value);
+    } else if (flag == "--model") {
+      a.model = value;
+    } else if (flag == "--json") {
+      a.json_out = value;
+    } else if (flag == "--csv-out") {
+      a.csv_out = value;
+    } else if (flag == "--settle-discard") {
+      a.settle_discard_s = std::stod(value);
+      a.settle_discard_given = true;
+    } else {
+      ADD_FAILURE() << "unknown option " << flag;
+    }
+  }
+  return a;
+}
+
+// offline_fit in process with the arguments of `args`.
+ToolRun run_tool(const std::vector<std::string>& args, const TempDir&) {
+  std::ostringstream out, err;
+  ToolRun r;
+  r.status = ai::run_offline_fit(parse_arguments(args), out, err);
+  r.out = out.str();
+  r.err = err.str();
   return r;
 }
 
@@ -471,7 +529,9 @@ TEST(OfflineFit, SimulatedRecordingMatchesInProcessPipeline) {
   const ToolRun r = run_tool({"--bag", dir.file("sim.bag"), "--json", dir.file("sim.json")}, dir);
   ASSERT_EQ(r.status, 0) << r.err;
   const json j = load_json(dir.file("sim.json"));
-  EXPECT_EQ(fit_part(j), fit_part(core::to_json(expected)));
+  core::CalibrationReport report;
+  report.base_fit = report.certificate = expected;
+  EXPECT_EQ(fit_part(j), fit_part(json::parse(ai::io::result_json_text(report, {}))));
   EXPECT_EQ(j["positions"]["z"], 8);
   const char* names[] = {"u", "v", "w"};
   for (int s = 0; s < 3; ++s) {
@@ -622,9 +682,6 @@ TEST(OfflineFit, SettleDiscardDropsTheFirstSecondsOfEachDwell) {
   ToolRun bad = run_tool({"--bag", dir.file("run.bag"), "--settle-discard", "-1"}, dir);
   EXPECT_EQ(bad.status, 2);
   expect_single_line_error(bad, "--settle-discard");
-  bad = run_tool({"--bag", dir.file("run.bag"), "--settle-discard", "abc"}, dir);
-  EXPECT_EQ(bad.status, 2);
-  expect_single_line_error(bad, "settle-discard");
   bad = run_tool({"--csv", dir.file("table.csv"), "--settle-discard", "0.1"}, dir);
   EXPECT_EQ(bad.status, 2);
   expect_single_line_error(bad, "--settle-discard applies to --bag only");
@@ -801,18 +858,59 @@ TEST(OfflineFitBadInput, CommandLine) {
   r = run_tool({"--bag", dir.file("run.bag"), "--gravity", "980.665"}, dir);
   EXPECT_EQ(r.status, 2);
   expect_single_line_error(r, "--gravity 980.665");
-  r = run_tool({"--bag", dir.file("run.bag"), "--gravity", "abc"}, dir);
+}
+
+// ---- the command line (the binary) ---------------------------------------------------------------
+
+TEST(OfflineFitCommandLine, HelpAndBadArguments) {
+  TempDir dir;
+  make_hand_bag(dir.file("run.bag"));
+  ToolRun r = run_binary({"--bag", dir.file("run.bag"), "--gravity", "abc"}, dir);
   EXPECT_EQ(r.status, 2);
   expect_single_line_error(r, "gravity");
-  r = run_tool({"--bag", dir.file("run.bag"), "--frobnicate"}, dir);
+  r = run_binary({"--bag", dir.file("run.bag"), "--frobnicate"}, dir);
   EXPECT_EQ(r.status, 2);
   expect_single_line_error(r, "frobnicate");
-  r = run_tool({"--help"}, dir);
+  r = run_binary({"--bag", dir.file("run.bag"), "--settle-discard", "abc"}, dir);
+  EXPECT_EQ(r.status, 2);
+  expect_single_line_error(r, "settle-discard");
+  r = run_binary({"--bag", dir.file("run.bag"), "--model", "eq5"}, dir);
+  EXPECT_EQ(r.status, 2);
+  expect_single_line_error(r, "--model");
+  r = run_binary({"--help"}, dir);
   EXPECT_EQ(r.status, 0);
   for (const char* opt : {"--bag", "--csv", "--imu-topic", "--command-topic", "--gravity", "--model", "--analyze",
                           "--json", "--csv-out", "--settle-discard"}) {
     EXPECT_NE(r.out.find(opt), std::string::npos) << opt;
   }
+}
+
+// One bag run and one CSV run through the binary: the same files and report as in process.
+TEST(OfflineFitCommandLine, BagAndCsvRunsEqualTheLibrary) {
+  TempDir dir;
+  make_hand_bag(dir.file("run.bag"));
+  const ToolRun bin = run_binary({"--bag", dir.file("run.bag"), "--json", dir.file("bin.json"), "--csv-out",
+                                  dir.file("bin.csv")},
+                                 dir);
+  ASSERT_EQ(bin.status, 0) << bin.err;
+  EXPECT_EQ(bin.err, "");
+  const ToolRun lib = run_tool({"--bag", dir.file("run.bag"), "--json", dir.file("lib.json"), "--csv-out",
+                                dir.file("lib.csv")},
+                               dir);
+  ASSERT_EQ(lib.status, 0) << lib.err;
+  EXPECT_EQ(read_file(dir.file("bin.csv")), read_file(dir.file("lib.csv")));
+  json jb = load_json(dir.file("bin.json"));
+  json jl = load_json(dir.file("lib.json"));
+  jb["input"].erase("read_wall_s");  // wall time of the read
+  jl["input"].erase("read_wall_s");
+  EXPECT_EQ(jb, jl);
+
+  const ToolRun csv = run_binary({"--csv", dir.file("bin.csv"), "--model", "eq4", "--json", "-"}, dir);
+  ASSERT_EQ(csv.status, 0) << csv.err;
+  const ToolRun csv_lib = run_tool({"--csv", dir.file("bin.csv"), "--model", "eq4", "--json", "-"}, dir);
+  EXPECT_EQ(csv.out, csv_lib.out);  // the JSON on stdout
+  EXPECT_EQ(csv.err, csv_lib.err);  // the report on stderr
+  EXPECT_EQ(json::parse(csv.out)["model"], "eq4");
 }
 
 // --analyze adds the analysis keys of the contract; a build without the analysis refuses cleanly

@@ -1,6 +1,7 @@
 // Discrepancy analysis: where do the measurements and the digital twin disagree, which effect of
 // the vocabulary (effects.h, DESIGN.md section 3) is missing, and how much of the gap closes once
-// it is added (DESIGN.md section 2: JSON keys `effects`, `ambiguous`, `gap`).
+// it is added (DESIGN.md section 2: JSON keys `effects`, `ambiguous`, `gap`, written by
+// io/analysis_report.h).
 //
 // Workflow of analyze():
 //  1. Fit the joint model (plus any known effects in AnalysisOptions::base_effects).
@@ -34,7 +35,6 @@
 #include <array>
 #include <cstdint>
 #include <iosfwd>
-#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -195,22 +195,8 @@ struct AnalysisResult {
 // The whole workflow. Throws FitError when even the base model cannot be fitted.
 AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& options = {});
 
-// JSON for offline_fit --analyze: `effects`, `ambiguous`, `gap {before, after}` (DESIGN.md
-// section 2) plus localization, screening steps and notes.
-nlohmann::json analysis_to_json(const AnalysisResult& result);
-
-// Human-readable report (a few dozen lines): gap before/after, the worst cells and harmonics,
-// named effects, ambiguity, notes. For offline_fit's text output and the calibration node's log.
-void write_analysis_report(std::ostream& out, const AnalysisResult& result);
-
-// Long-format CSV for plots: one line per dwell and accelerometer,
-//   phase,step,angle_rad,time_s,approach,accelerometer,measured,sigma,
-//   model_before,residual_before,z_before,model_after,residual_after,z_after
-// (models from the digital twins of the two fits). Throws std::runtime_error if unwritable.
-void write_residuals_csv(const std::string& path, const PositionTable& table,
-                         const FitResult& before_fit, const FitResult& after_fit);
-void write_residuals_csv(std::ostream& out, const PositionTable& table, const FitResult& before_fit,
-                         const FitResult& after_fit);
+// Its documents (the analysis JSON, the text report, the residual CSV) are written by the io
+// library: io/analysis_report.h, io/residuals_csv.h.
 
 // timing_lag needs raw streams, not dwell means: see estimate_timing_lag() in raw_stream_analysis.h.
 

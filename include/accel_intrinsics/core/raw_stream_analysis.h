@@ -23,7 +23,6 @@
 #include <cstddef>
 #include <deque>
 #include <limits>
-#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -168,7 +167,7 @@ TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
                                       const Eigen::Vector3d& sample_sigma,
                                       const TimingLagEstimateOptions& options = {});
 
-// Convenience for offline_fit --analyze: t0 = effective_time_origin(table), the origin fit() used
+// Convenience for calibrate() (core/calibrate.h): t0 = effective_time_origin(table), the origin fit() used
 // for the drift term (the first command when the table came from the assembler; the first
 // command of `commands` for an empty table), sample_sigma = pooled_sample_std(table), base_fit =
 // the fit of that table (e.g. fit(table) or AnalysisResult::after_fit).
@@ -177,21 +176,17 @@ TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
                                       const PositionTable& table, const FitResult& base_fit,
                                       const TimingLagEstimateOptions& options = {});
 
-// The timing lag beside the discrepancy analysis of the dwells (offline_fit --analyze on a bag,
-// the calibration node's analysis): estimated with `after_fit` (the analysis's refit) at
-// alpha = kTimingLagAlphaBesideScreen, written under the key "timing_lag" of `analysis_json`
+// The options of the timing lag beside the discrepancy analysis of the dwells (core::calibrate
+// with analyze, i.e. offline_fit --analyze on a bag and the calibration node's analysis): the lag
+// is estimated with the analysis's refit (AnalysisResult::after_fit) at
+// alpha = kTimingLagAlphaBesideScreen; io/analysis_report.h writes it under the key "timing_lag"
 // ({ok, message, value, std, p_value, detected, lr_chi2, samples_used, detection_threshold}) and
-// appended to its "effects" ({name: timing_lag, target: all, value, std, p_value}) when detected.
+// appends it to "effects" ({name: timing_lag, target: all, value, std, p_value}) when detected.
 // False alarms: the dwell screen spends AnalysisOptions::alpha (2.5 %) family-wise and this test
 // 1 %, so an effect-free run names anything in at most 3.5 % of runs (the requirement is 5 %; the
 // margin keeps a check on 200 runs from failing by chance).
 constexpr double kTimingLagAlphaBesideScreen = 0.01;
 TimingLagEstimateOptions timing_lag_options_beside_screen();
-void add_timing_lag(const TimingLagEstimate& lag, nlohmann::json* analysis_json);
-TimingLagEstimate screen_timing_lag(const std::vector<GimbalEvent>& commands,
-                                    const std::vector<ImuSample>& samples,
-                                    const PositionTable& table, const FitResult& after_fit,
-                                    nlohmann::json* analysis_json);
 
 }  // namespace core
 }  // namespace accel_intrinsics

@@ -20,7 +20,7 @@ constexpr char kProgressTopic[] = "gimbal_controller/progress";
 // diagnostic_msgs/DiagnosticStatus: dwells per phase and the dropped-sample counters.
 constexpr char kCalibrationStatusTopic[] = "calibration/status";
 constexpr char kClockTopic[] = "/clock";
-// std_msgs/String, latched: the JSON of core::analysis_to_json() after an analysis (issue 5).
+// std_msgs/String, latched: the JSON of io::analysis_json_text() after an analysis (issue 5).
 constexpr char kAnalysisTopic[] = "calibration/analysis";
 // std_srvs/Trigger: run the analysis on the current position table.
 constexpr char kAnalyzeService[] = "calibration/analyze";

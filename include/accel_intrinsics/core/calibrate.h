@@ -1,0 +1,53 @@
+// The calibration pipeline: fit -> discrepancy analysis -> timing lag, and which fit the
+// certificate holds. The one sequence behind the calibration node (its worker and its analyze
+// service) and offline_fit (DESIGN.md section 4); the io writers turn its report into files.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/core/discrepancy.h"
+#include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/raw_stream_analysis.h"
+
+namespace accel_intrinsics {
+namespace core {
+
+// The raw streams of a run, for the timing-lag estimate (dwell means cannot show a lag).
+struct RawStreams {
+  std::vector<GimbalEvent> commands;  // whole recording, or the moves only (MoveSampleRecorder)
+  std::vector<ImuSample> samples;
+};
+
+struct CalibrateOptions {
+  FitOptions fit;            // model, local_gravity, min_positions_per_phase
+  bool analyze = false;      // discrepancy analysis, and timing lag when raw streams have commands
+  AnalysisOptions analysis;  // its local_gravity is set from fit.local_gravity
+  // Certificate = the analysis' refit when it named effects, else the base fit.
+  bool certificate_refit = false;
+};
+
+struct CalibrationReport {
+  FitResult base_fit;     // the fit with options.fit.model
+  FitResult certificate;  // what result files and messages hold (base_fit or the refit)
+  bool certificate_is_refit = false;
+  bool certificate_refit_policy = false;   // the policy asked ("base" | "refit")
+  std::optional<AnalysisResult> analysis;  // when analyze and it succeeded
+  std::string analysis_error;              // when analyze and it failed (the fit stands)
+  // When analyze and raw commands were given: estimate_timing_lag with the analysis' refit and
+  // timing_lag_options_beside_screen() (its false-alarm budget beside the dwell screen).
+  std::optional<TimingLagEstimate> timing_lag;
+};
+
+// Fit -> analysis -> timing lag. Throws FitError when the fit fails (the message says what is
+// missing; fit() may also throw std::invalid_argument for bad options). A failing analysis or
+// lag estimate does not throw: it leaves analysis_error and the base fit as the certificate.
+// `raw` may be null (a position table alone: no timing lag).
+CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
+                            const CalibrateOptions& options);
+
+}  // namespace core
+}  // namespace accel_intrinsics

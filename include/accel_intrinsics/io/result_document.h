@@ -1,0 +1,107 @@
+// The result of a calibration as a document: one key list, emitted as JSON (offline_fit --json)
+// or YAML (the calibration node's intrinsics.yaml), so that a key means the same in both
+// (DESIGN.md sections 2 and 4). Keys, all from one function:
+//
+//   contract (DESIGN.md section 2): model (joint|eq4), responsivity {u,v,w}, responsivity_std,
+//     angles_deg {uv,vw,wu}, angles_std_deg, vectors {u,v,w: [x,y,z]}, offset {u,v,w},
+//     offset_per_phase {u,v,w: {x,y,z}}, cross_sensitivity (3x3, rows), local_gravity,
+//     reduced_chi2, residual_rms, positions {x,y,z}
+//   of the certificate fit, beyond the contract: model_label (e.g.
+//     "joint+quadratic_nonlinearity[u]"), vectors_std, offset_std, offset_per_phase_std,
+//     cross_sensitivity_std, chi2, dof, fitted_effects [{name, target, value, std}] (the terms
+//     fitted in the certificate model)
+//   always: certificate_model (model_label of the certificate), certificate_policy (base|refit)
+//   with an analysis: effects [{name, target, value, std, p_value, ...}] (the effects the analysis
+//     named, timing_lag appended when detected), ambiguous, gap {before, after}, screening, ...
+//     (analysis_report.h; never replacing a key above), timing_lag when estimated;
+//     analysis_error when the analysis failed
+//   from the context: stamp (node), samples {used, dropped_*} (node), input, complete, warnings
+//     (offline_fit)
+//
+// Non-finite numbers are null. Keys come out sorted. Files are written atomically (atomic_file.h).
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/core/calibrate.h"
+#include "accel_intrinsics/core/dwell_assembler.h"
+#include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/intrinsics.h"
+
+namespace accel_intrinsics {
+namespace io {
+
+// What a bag gave (offline_fit's "input" block for a bag).
+struct BagInputDescription {
+  std::string imu_topic;
+  std::string command_topic;
+  std::uint64_t imu_messages = 0;
+  std::uint64_t command_messages = 0;
+  std::uint64_t invalid_commands = 0;
+  double duration_s = 0.0;
+  double read_wall_s = 0.0;
+  double settle_discard_s = 0.0;
+  core::AssemblerCounters counters;
+  bool done_seen = false;
+  double time_origin_s = std::numeric_limits<double>::quiet_NaN();
+};
+
+// Where the dwells came from: a CSV position table or a bag.
+struct InputDescription {
+  std::string path;
+  std::size_t dwells = 0;                  // rows of the position table
+  std::optional<BagInputDescription> bag;  // absent: a CSV position table
+  std::string summary;                     // one line for the text report
+};
+
+// What the document says beyond the pipeline's report.
+struct ResultContext {
+  double stamp_s = std::numeric_limits<double>::quiet_NaN();  // "stamp"; NaN = omitted
+  std::optional<core::AssemblerCounters> samples;             // the node's "samples" block
+  // offline_fit: "input", "complete" (null for a CSV, which cannot tell) and "warnings".
+  std::optional<InputDescription> input;
+  bool complete = true;
+  std::vector<std::string> warnings;
+};
+
+std::string result_json_text(const core::CalibrationReport& report, const ResultContext& context);
+std::string result_yaml_text(const core::CalibrationReport& report, const ResultContext& context);
+// Atomic; throw IoError naming the path.
+void write_result_json(const std::string& path, const core::CalibrationReport& report,
+                       const ResultContext& context);
+void write_result_yaml(const std::string& path, const core::CalibrationReport& report,
+                       const ResultContext& context);
+
+// ---- reading results back (exporters, comparisons) --------------------------------------------
+
+struct StoredEffect {
+  std::string name;
+  std::string target;
+  double value = 0.0;
+  double std = 0.0;
+};
+
+// The certificate of a result file. Non-finite (null) numbers read as NaN.
+struct StoredResult {
+  core::FitModel model = core::FitModel::Joint;
+  std::string model_label;      // e.g. "joint+quadratic_nonlinearity[u]"
+  core::Intrinsics intrinsics;  // responsivity, angles (rad) and their std; no covariance
+  Eigen::Matrix3d S = Eigen::Matrix3d::Identity();  // rows u, v, w
+  Eigen::Vector3d O = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d cross_sensitivity = Eigen::Matrix3d::Identity();  // P = S^-1
+  double local_gravity = 0.0;
+  std::vector<StoredEffect> fitted_effects;
+};
+
+// Reads a result written by write_result_json/yaml, by offline_fit before them, or an old node
+// YAML (whose `model` held the label and whose `effects` held the fitted terms). Throws IoError
+// naming the path (and the key when one is missing or malformed).
+StoredResult read_result_file(const std::string& path);
+
+}  // namespace io
+}  // namespace accel_intrinsics

@@ -1,0 +1,23 @@
+// The text report of a calibration (offline_fit's standard output): input, warnings, model, the
+// certificate's parameters with their standard uncertainties, S and P, the fit quality; then the
+// analysis report and the timing lag when the report has them.
+#pragma once
+
+#include <iosfwd>
+
+#include "accel_intrinsics/core/calibrate.h"
+#include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/io/result_document.h"
+
+namespace accel_intrinsics {
+namespace io {
+
+// The parameter table of one fit (uses context.input and warnings for the header lines).
+void write_fit_report(std::ostream& out, const core::FitResult& fit, const ResultContext& context);
+// write_fit_report of the certificate, then (after a blank line) the analysis report and the
+// timing-lag line.
+void write_text_report(std::ostream& out, const core::CalibrationReport& report,
+                       const ResultContext& context);
+
+}  // namespace io
+}  // namespace accel_intrinsics

@@ -1,0 +1,65 @@
+// offline_fit as a library: recalibrates from a recorded bag or a CSV position table, without
+// playback (DESIGN.md section 2, "Offline tool"). src/nodes/offline_fit.cpp is its command line;
+// tests call run_offline_fit() in process.
+//
+//   offline_fit (--bag FILE | --csv FILE) [--imu-topic T] [--command-topic T] [--gravity G]
+//               [--model joint|eq4] [--analyze] [--json OUT] [--csv-out FILE]
+//               [--settle-discard SECONDS]
+//
+// The bag goes through core::DwellAssembler (bag_input.h), the dwell assignment of the
+// calibration node, and the table through core::calibrate(), the node's pipeline, so the result
+// equals the online one for the same messages. The JSON is io::result_json_text (the keys of the
+// node's intrinsics.yaml) with offline_fit's `input`, `complete` and `warnings`; --analyze adds the
+// discrepancy analysis (base model always joint plus the effects it names, whatever --model says)
+// and, on a bag, the timing lag from the raw streams. The certificate is the --model fit.
+//
+// --settle-discard (default 0) drops the samples of the first SECONDS of each dwell (after
+// SETTLED), as the calibration node's settle_discard_s does: for a gimbal that still rings when
+// it reports settled. Bags only.
+#pragma once
+
+#include <iosfwd>
+#include <string>
+
+#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/ros/names.h"
+
+namespace accel_intrinsics {
+
+constexpr char kOfflineFitProgram[] = "offline_fit";
+
+// Exit status of run_offline_fit.
+enum OfflineFitStatus : int {
+  kOfflineFitOk = 0,
+  kOfflineFitBadInput = 1,  // unreadable or insufficient input, failed fit or analysis, I/O
+  kOfflineFitBadCommandLine = 2,
+};
+
+// The command line, parsed (src/nodes/offline_fit.cpp); defaults as the tool's.
+struct OfflineFitArguments {
+  std::string bag;  // exactly one of bag and csv
+  std::string csv;
+  std::string imu_topic = names::kImuTopic;
+  std::string command_topic = names::kGimbalCommandTopic;
+  double gravity = core::kStandardGravity;  // m/s^2
+  std::string model = "joint";
+  bool analyze = false;
+  std::string json_out;  // "-": standard output (the text report then goes to `err`)
+  std::string csv_out;
+  double settle_discard_s = 0.0;
+  // Given explicitly (they apply to --bag only, and are refused with --csv).
+  bool imu_topic_given = false;
+  bool command_topic_given = false;
+  bool settle_discard_given = false;
+};
+
+// Runs the tool: the text report on `out` (on `err` when json_out is "-"), progress, warnings
+// and errors on `err`. Returns the exit status; every failure prints exactly one line
+// "offline_fit: error: ..." on `err` and writes no output file. Output files (json_out, csv_out)
+// appear only on success, each atomically (io/atomic_file.h).
+int run_offline_fit(const OfflineFitArguments& args, std::ostream& out, std::ostream& err);
+
+// `text` with line breaks replaced by spaces (one-line error messages).
+std::string as_one_line(std::string text);
+
+}  // namespace accel_intrinsics

@@ -1,0 +1,40 @@
+#include "accel_intrinsics/core/calibrate.h"
+
+#include <exception>
+
+namespace accel_intrinsics {
+namespace core {
+
+CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
+                            const CalibrateOptions& options) {
+  CalibrationReport report;
+  report.certificate_refit_policy = options.certificate_refit;
+  report.base_fit = fit(table, options.fit);
+  report.certificate = report.base_fit;
+  if (!options.analyze) return report;
+
+  AnalysisOptions analysis_options = options.analysis;
+  analysis_options.local_gravity = options.fit.local_gravity;
+  try {
+    report.analysis = analyze(table, analysis_options);
+    // Timing lag shows only in the raw streams around the moves.
+    if (raw != nullptr && !raw->commands.empty()) {
+      report.timing_lag =
+          estimate_timing_lag(raw->commands, raw->samples, table, report.analysis->after_fit,
+                              timing_lag_options_beside_screen());
+    }
+  } catch (const std::exception& e) {
+    report.analysis.reset();
+    report.timing_lag.reset();
+    report.analysis_error = e.what();
+    return report;
+  }
+  if (options.certificate_refit && !report.analysis->effects.empty()) {
+    report.certificate = report.analysis->after_fit;
+    report.certificate_is_refit = true;
+  }
+  return report;
+}
+
+}  // namespace core
+}  // namespace accel_intrinsics

@@ -1,0 +1,28 @@
+// Private to the io library: the JSON trees behind the result and analysis documents, built once
+// and emitted as JSON or YAML. No public header includes nlohmann.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "accel_intrinsics/core/calibrate.h"
+#include "accel_intrinsics/core/discrepancy.h"
+#include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/raw_stream_analysis.h"
+#include "accel_intrinsics/io/result_document.h"
+
+namespace accel_intrinsics {
+namespace io {
+namespace detail {
+
+// The fit's keys (the contract's plus model_label, *_std, chi2, dof, fitted_effects).
+nlohmann::json fit_json(const core::FitResult& fit);
+// The analysis' keys (analysis_report.h).
+nlohmann::json analysis_json(const core::AnalysisResult& analysis);
+// "timing_lag" {...}, and appended to "effects" when detected.
+void add_timing_lag(const core::TimingLagEstimate& lag, nlohmann::json* analysis);
+// The whole result document (result_document.h).
+nlohmann::json result_document(const core::CalibrationReport& report, const ResultContext& context);
+
+}  // namespace detail
+}  // namespace io
+}  // namespace accel_intrinsics

@@ -1,0 +1,99 @@
+#include "accel_intrinsics/io/text_report.h"
+
+#include <cmath>
+#include <iomanip>
+#include <ostream>
+#include <string>
+
+#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/io/analysis_report.h"
+
+namespace accel_intrinsics {
+namespace io {
+
+void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultContext& context) {
+  const core::Intrinsics& in = r.intrinsics;
+  out << "accel_intrinsics offline_fit\n";
+  if (context.input) {
+    out << "input:         " << context.input->summary << "\n";
+    if (!context.complete) {
+      out << "INCOMPLETE RUN: the result below uses only the dwells found\n";
+    }
+  }
+  for (const std::string& w : context.warnings) out << "warning:       " << w << "\n";
+  out << "model:         " << r.model_label() << "\n";
+  out << "local gravity: " << std::setprecision(9) << r.local_gravity << " m/s^2\n";
+  out << "positions:     x " << r.positions[0] << ", y " << r.positions[1] << ", z "
+      << r.positions[2] << "\n\n";
+
+  auto line = [&out](const std::string& name, double value, double std_value,
+                     const std::string& unit) {
+    out << "  " << std::left << std::setw(18) << name << std::right << std::setw(20)
+        << std::setprecision(12) << value << "  +- " << std::left << std::setw(12)
+        << std::setprecision(3) << std_value << std::right << " " << unit << "\n";
+  };
+  out << "  " << std::left << std::setw(18) << "parameter" << std::right << std::setw(20) << "value"
+      << "     std (k=1)\n";
+  static const char* const kAngles[] = {"theta_uv", "theta_vw", "theta_wu"};
+  for (int s = 0; s < 3; ++s) {
+    line(std::string("|") + core::accelerometer_name(s) + "|", in.responsivity(s),
+         in.responsivity_std(s), "");
+  }
+  for (int a = 0; a < 3; ++a) {
+    line(kAngles[a], core::rad_to_deg(in.angles_rad(a)), core::rad_to_deg(in.angles_std_rad(a)),
+         "deg");
+  }
+  for (int s = 0; s < 3; ++s) {
+    line(std::string("O_") + core::accelerometer_name(s), r.O(s), r.O_std(s), "m/s^2");
+  }
+  if (r.model == core::FitModel::Eq4) {
+    for (int s = 0; s < 3; ++s) {
+      for (core::Phase p : core::kPhases) {
+        line(std::string("O_") + core::accelerometer_name(s) + core::phase_name(p),
+             r.offset_per_phase(s, core::index(p)), r.offset_per_phase_std(s, core::index(p)),
+             "m/s^2");
+      }
+    }
+  }
+  for (std::size_t i = 0; i < r.effects.size(); ++i) {
+    line(r.effects[i].label(), r.effects[i].value,
+         i < r.effects_std.size() ? r.effects_std[i] : NAN, "");
+  }
+  out << "\n  vectors (rows of S, DUT frame x y z):\n";
+  for (int s = 0; s < 3; ++s) {
+    out << "    " << core::accelerometer_name(s) << " = [";
+    for (int c = 0; c < 3; ++c) {
+      out << (c ? ", " : "") << std::setw(17) << std::setprecision(10) << r.S(s, c);
+    }
+    out << "]\n";
+  }
+  out << "  cross-sensitivity P = S^-1 (row-major):\n";
+  for (int s = 0; s < 3; ++s) {
+    out << "    [";
+    for (int c = 0; c < 3; ++c) {
+      out << (c ? ", " : "") << std::setw(17) << std::setprecision(10) << r.cross_sensitivity(s, c);
+    }
+    out << "]\n";
+  }
+  out << "\n  reduced chi2:  " << std::setprecision(6) << r.reduced_chi2 << " (chi2 " << r.chi2
+      << ", dof " << r.dof << ")\n";
+  out << "  residual rms:  " << std::setprecision(6) << r.residual_rms << " m/s^2\n";
+  out.flush();
+}
+
+void write_text_report(std::ostream& out, const core::CalibrationReport& report,
+                       const ResultContext& context) {
+  write_fit_report(out, report.certificate, context);
+  if (!report.analysis) return;
+  out << "\n";
+  write_analysis_report(out, *report.analysis);
+  if (report.timing_lag) {
+    out << "  timing lag (raw streams): " << (report.timing_lag->ok ? "" : "no estimate: ")
+        << report.timing_lag->message << "\n";
+  }
+  out.flush();
+}
+
+}  // namespace io
+}  // namespace accel_intrinsics

@@ -1,0 +1,283 @@
+#include "accel_intrinsics/ros/offline_fit.h"
+
+#include <array>
+#include <cmath>
+#include <iomanip>
+#include <memory>
+#include <ostream>
+#include <sstream>
+#include <vector>
+
+#include "accel_intrinsics/core/calibrate.h"
+#include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/io/atomic_file.h"
+#include "accel_intrinsics/io/result_document.h"
+#include "accel_intrinsics/io/text_report.h"
+#include "accel_intrinsics/ros/bag_input.h"
+
+namespace accel_intrinsics {
+namespace {
+
+// Accepted local gravity, m/s^2, exclusive bounds: the calibration node's
+// (config/calibration.yaml); Earth's surface spans 9.76..9.84, and unit slips (cm/s^2, or 1 for
+// "one g") are refused.
+constexpr double kMinGravity = 9.7;
+constexpr double kMaxGravity = 9.9;
+
+// A failure with its exit status; the message is printed as one line.
+struct Failure {
+  int status;
+  std::string message;
+};
+
+// What was read, whatever the source.
+struct Input {
+  core::PositionTable table;
+  io::ResultContext context;  // input description, complete, warnings
+  bool from_bag = false;
+  core::RawStreams raw;  // bag with --analyze: for the timing-lag estimate
+};
+
+Input read_csv_input(const OfflineFitArguments& args) {
+  Input input;
+  try {
+    input.table = core::read_position_table_file(args.csv);
+  } catch (const core::PositionTableError& e) {
+    throw Failure{kOfflineFitBadInput, as_one_line(e.what())};
+  }
+  io::InputDescription description;
+  description.path = args.csv;
+  description.dwells = input.table.rows.size();
+  description.summary =
+      "position table " + args.csv + " (" + std::to_string(input.table.rows.size()) + " dwells)";
+  input.context.input = description;
+  return input;
+}
+
+// Why a bag run is incomplete, and anything else worth a look.
+void check_bag_run(const BagInputStats& st, const core::PositionTable& table, Input* input) {
+  const core::AssemblerCounters& c = st.counters;
+  std::vector<std::string>& warnings = input->context.warnings;
+  bool& complete = input->context.complete;
+  if (!st.done_seen) {
+    complete = false;
+    warnings.push_back("the recording ends before the controller's DONE");
+  }
+  if (st.open_dwell) {
+    complete = false;
+    warnings.push_back(std::string("the dwell (phase ") + core::phase_name(st.open_dwell_phase) +
+                       ", step " + std::to_string(st.open_dwell_step) +
+                       ") was still open at the end of the bag (" +
+                       std::to_string(st.open_dwell_samples) + " samples not used)");
+  }
+  const std::array<int, 3> found = core::positions_per_phase(table);
+  for (core::Phase p : core::kPhases) {
+    const std::uint32_t announced = st.steps_announced[core::index(p)];
+    if (announced > 0 && found[core::index(p)] < static_cast<int>(announced)) {
+      complete = false;
+      warnings.push_back(std::string("phase ") + core::phase_name(p) + ": " +
+                         std::to_string(found[core::index(p)]) + " of " +
+                         std::to_string(announced) + " positions have a dwell");
+    }
+  }
+  if (c.dropped_non_finite > 0) {
+    warnings.push_back(std::to_string(c.dropped_non_finite) +
+                       " IMU samples with non-finite values dropped");
+  }
+  if (c.dropped_late > 0) {
+    warnings.push_back(
+        std::to_string(c.dropped_late) +
+        " messages arrived (in bag order) later than the reorder window and were dropped");
+  }
+  if (st.invalid_commands > 0) {
+    warnings.push_back(
+        std::to_string(st.invalid_commands) +
+        " malformed gimbal commands ignored (phase, state, step/steps, angle or stamp)");
+  }
+  if (c.commands_out_of_order > 0) {
+    warnings.push_back(std::to_string(c.commands_out_of_order) +
+                       " gimbal commands out of protocol order (last: " + c.last_warning + ")");
+  }
+}
+
+Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
+  BagInputOptions options;
+  options.imu_topic = args.imu_topic;
+  options.command_topic = args.command_topic;
+  options.assembler.settle_discard_s = args.settle_discard_s;
+  options.progress_stream = &err;
+  options.progress_label = std::string(kOfflineFitProgram) + ": reading " + args.bag;
+
+  Input input;
+  if (args.analyze) {
+    options.raw_commands = &input.raw.commands;
+    options.raw_samples = &input.raw.samples;
+  }
+  BagRun run;
+  try {
+    run = read_bag(args.bag, options);
+  } catch (const BagInputError& e) {
+    throw Failure{kOfflineFitBadInput, as_one_line(e.what())};
+  }
+  const BagInputStats& st = run.stats;
+  if (st.command_messages == 0) {
+    throw Failure{kOfflineFitBadInput,
+                  "no gimbal commands on '" + st.command_topic + "' in " + args.bag};
+  }
+  if (st.imu_messages == 0) {
+    throw Failure{kOfflineFitBadInput, "no IMU messages on '" + st.imu_topic + "' in " + args.bag};
+  }
+
+  input.from_bag = true;
+  input.table = std::move(run.table);
+  io::BagInputDescription bag;
+  bag.imu_topic = st.imu_topic;
+  bag.command_topic = st.command_topic;
+  bag.imu_messages = st.imu_messages;
+  bag.command_messages = st.command_messages;
+  bag.invalid_commands = st.invalid_commands;
+  bag.duration_s = st.bag_end_s - st.bag_start_s;
+  bag.read_wall_s = st.read_wall_s;
+  bag.settle_discard_s = args.settle_discard_s;
+  bag.counters = st.counters;
+  bag.done_seen = st.done_seen;
+  bag.time_origin_s = input.table.time_origin_s;
+  io::InputDescription description;
+  description.path = args.bag;
+  description.dwells = input.table.rows.size();
+  description.bag = bag;
+  std::ostringstream summary;
+  summary << "bag " << args.bag << " (" << st.imu_messages << " IMU messages on " << st.imu_topic
+          << ", " << st.command_messages << " commands on " << st.command_topic << ", "
+          << std::fixed << std::setprecision(1) << bag.duration_s << " s)";
+  description.summary = summary.str();
+  input.context.input = description;
+  check_bag_run(st, input.table, &input);
+  return input;
+}
+
+// Each phase present with enough dwells; named in the message when not.
+void check_phases(const core::PositionTable& table, int min_positions) {
+  const std::array<int, 3> counts = core::positions_per_phase(table);
+  std::ostringstream tally;
+  tally << "dwells per phase: x=" << counts[0] << ", y=" << counts[1] << ", z=" << counts[2];
+  for (core::Phase p : core::kPhases) {
+    if (counts[core::index(p)] == 0) {
+      throw Failure{kOfflineFitBadInput, std::string("phase ") + core::phase_name(p) +
+                                             " is missing (" + tally.str() + ")"};
+    }
+  }
+  for (core::Phase p : core::kPhases) {
+    if (counts[core::index(p)] < min_positions) {
+      throw Failure{kOfflineFitBadInput,
+                    std::string("too few dwells in phase ") + core::phase_name(p) + ": " +
+                        std::to_string(counts[core::index(p)]) + ", at least " +
+                        std::to_string(min_positions) + " needed (" + tally.str() + ")"};
+    }
+  }
+}
+
+void check_command_line(const OfflineFitArguments& args) {
+  if (args.bag.empty() == args.csv.empty()) {
+    throw Failure{kOfflineFitBadCommandLine, "give exactly one of --bag FILE or --csv FILE"};
+  }
+  if (!args.csv.empty() && (args.imu_topic_given || args.command_topic_given)) {
+    throw Failure{kOfflineFitBadCommandLine, "--imu-topic and --command-topic apply to --bag only"};
+  }
+  if (!args.csv.empty() && args.settle_discard_given) {
+    throw Failure{
+        kOfflineFitBadCommandLine,
+        "--settle-discard applies to --bag only (a position table's dwells are already averaged)"};
+  }
+  if (!std::isfinite(args.settle_discard_s) || args.settle_discard_s < 0.0) {
+    std::ostringstream s;
+    s << "--settle-discard " << args.settle_discard_s << " must be a number of seconds >= 0";
+    throw Failure{kOfflineFitBadCommandLine, s.str()};
+  }
+  if (!std::isfinite(args.gravity) || args.gravity <= kMinGravity || args.gravity >= kMaxGravity) {
+    std::ostringstream s;
+    s << "--gravity " << args.gravity << " is not a local gravity in m/s^2 (must be in ("
+      << kMinGravity << ", " << kMaxGravity << "))";
+    throw Failure{kOfflineFitBadCommandLine, s.str()};
+  }
+  if (!args.json_out.empty() && args.json_out == args.csv_out) {
+    throw Failure{kOfflineFitBadCommandLine, "--json and --csv-out name the same file"};
+  }
+}
+
+int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
+  check_command_line(args);
+  core::CalibrateOptions options;
+  try {
+    options.fit.model = core::parse_model(args.model);
+  } catch (const std::exception& e) {
+    throw Failure{kOfflineFitBadCommandLine, "--model: " + as_one_line(e.what())};
+  }
+  options.fit.local_gravity = args.gravity;
+  options.analyze = args.analyze;
+
+  const Input input = args.bag.empty() ? read_csv_input(args) : read_bag_input(args, err);
+  check_phases(input.table, options.fit.min_positions_per_phase);
+
+  core::CalibrationReport report;
+  try {
+    report = core::calibrate(input.table, input.from_bag ? &input.raw : nullptr, options);
+  } catch (const core::FitError& e) {
+    throw Failure{kOfflineFitBadInput, "fit failed: " + as_one_line(e.what())};
+  } catch (const std::invalid_argument& e) {
+    throw Failure{kOfflineFitBadInput, "fit failed: " + as_one_line(e.what())};
+  }
+  if (!report.analysis_error.empty()) {
+    throw Failure{kOfflineFitBadInput,
+                  "--analyze: discrepancy analysis failed: " + as_one_line(report.analysis_error)};
+  }
+  const std::string json = io::result_json_text(report, input.context);
+
+  // Outputs: files first (all or nothing), then the report.
+  const bool json_to_stdout = args.json_out == "-";
+  std::unique_ptr<io::AtomicFile> csv_file, json_file;
+  if (!args.csv_out.empty()) {
+    csv_file.reset(new io::AtomicFile(args.csv_out));
+    core::write_position_table(csv_file->stream(), input.table);
+    csv_file->close();
+  }
+  if (!args.json_out.empty() && !json_to_stdout) {
+    json_file.reset(new io::AtomicFile(args.json_out));
+    json_file->stream() << json;
+    json_file->close();
+  }
+  if (csv_file) csv_file->commit();
+  if (json_file) json_file->commit();
+
+  io::write_text_report(json_to_stdout ? err : out, report, input.context);
+  if (json_to_stdout) out << json << std::flush;
+  if (!input.context.complete) {
+    err << kOfflineFitProgram << ": warning: incomplete run, result from the dwells found: "
+        << input.context.warnings.front() << std::endl;
+  }
+  return kOfflineFitOk;
+}
+
+}  // namespace
+
+std::string as_one_line(std::string text) {
+  for (char& c : text) {
+    if (c == '\n' || c == '\r') c = ' ';
+  }
+  return text;
+}
+
+int run_offline_fit(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
+  try {
+    return run(args, out, err);
+  } catch (const Failure& f) {
+    err << kOfflineFitProgram << ": error: " << f.message << std::endl;
+    return f.status;
+  } catch (const std::exception& e) {
+    err << kOfflineFitProgram << ": error: " << as_one_line(e.what()) << std::endl;
+    return kOfflineFitBadInput;
+  }
+}
+
+}  // namespace accel_intrinsics
