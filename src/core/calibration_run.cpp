@@ -72,6 +72,11 @@ void CalibrationRun::emit(RunAction::Kind kind) {
   actions_.push_back(std::move(a));
 }
 
+void CalibrationRun::log_repeating(const std::string& text) {
+  log(RunAction::Level::Warn, text);
+  actions_.back().repeating = true;
+}
+
 RunActions CalibrationRun::take_actions() {
   RunActions out;
   out.swap(actions_);
@@ -603,20 +608,20 @@ void CalibrationRun::check_watchdogs(double now_s) {
 void CalibrationRun::warn_on_new_drops() {
   const AssemblerCounters& c = assembler_.counters();
   if (c.dropped_non_finite > warned_.dropped_non_finite) {
-    log(RunAction::Level::Warn, "dropped IMU samples with NaN or infinite values (" +
+    log_repeating( "dropped IMU samples with NaN or infinite values (" +
                                     std::to_string(c.dropped_non_finite) + " so far)");
   }
   if (c.dropped_backwards > warned_.dropped_backwards) {
-    log(RunAction::Level::Warn, "dropped IMU samples whose stamp went backwards (" +
+    log_repeating( "dropped IMU samples whose stamp went backwards (" +
                                     std::to_string(c.dropped_backwards) + " so far)");
   }
   if (c.dropped_late > warned_.dropped_late) {
-    log(RunAction::Level::Warn, "dropped messages that arrived after the reorder window (" +
+    log_repeating( "dropped messages that arrived after the reorder window (" +
                                     std::to_string(c.dropped_late) +
                                     " so far; raise reorder_window_s?)");
   }
   if (c.commands_out_of_order > warned_.commands_out_of_order) {
-    log(RunAction::Level::Warn, "gimbal command out of protocol order (" +
+    log_repeating( "gimbal command out of protocol order (" +
                                     std::to_string(c.commands_out_of_order) +
                                     " so far): " + c.last_warning);
   }

@@ -159,6 +159,8 @@ GimbalControllerNode::GimbalControllerNode(ros::NodeHandle nh, ros::NodeHandle p
   progress_pub_ = nh_.advertise<diagnostic_msgs::DiagnosticStatus>(names::kProgressTopic, 10, true);
   start_srv_ = nh_.advertiseService(names::kStartService, &GimbalControllerNode::on_start, this);
   abort_srv_ = nh_.advertiseService(names::kAbortService, &GimbalControllerNode::on_abort, this);
+  abort_run_srv_ =
+      nh_.advertiseService(names::kAbortRunService, &GimbalControllerNode::on_abort_run, this);
   resume_srv_ =
       nh_.advertiseService(names::kResumeService, &GimbalControllerNode::on_resume, this);
   updater_.reset(new diagnostic_updater::Updater(nh_, pnh_));
@@ -242,10 +244,14 @@ bool GimbalControllerNode::on_start(std_srvs::Trigger::Request&, std_srvs::Trigg
 }
 
 bool GimbalControllerNode::on_abort(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-  // A caller may say why in ~abort_reason (the calibration node's watchdogs do).
-  std::string reason = "abort requested";
-  if (pnh_.getParam("request/abort_reason", reason)) pnh_.deleteParam("request/abort_reason");
-  res.success = abort(ros::Time::now(), reason, &res.message);
+  // The contract's Trigger: no reason travels with it (abort_run takes one).
+  res.success = abort(ros::Time::now(), "abort requested", &res.message);
+  return true;
+}
+
+bool GimbalControllerNode::on_abort_run(AbortRun::Request& req, AbortRun::Response& res) {
+  res.success = abort(ros::Time::now(), req.reason.empty() ? "abort requested" : req.reason,
+                      &res.message);
   return true;
 }
 

@@ -8,7 +8,7 @@
 #include <thread>
 #include <vector>
 
-#include "accel_intrinsics/ros/calibration_node.h"
+#include "accel_intrinsics/ros/immediate_callback_queue.h"
 
 namespace {
 

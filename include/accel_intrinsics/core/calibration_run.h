@@ -87,6 +87,7 @@ struct RunAction {
   Kind kind = Kind::Log;
   Level level = Level::Info;
   std::string text;
+  bool repeating = false;      // Log of a counter that may grow fast (drops): throttle it
   DwellRecord row;             // DwellAccepted
   ControllerRequest request;   // ResumeAt, Abort
   // FitNow: what to fit (a copy: the run may move on before the shell fits), the recorded
@@ -211,6 +212,7 @@ class CalibrationRun {
   AssemblerCounters counters() const;
   std::uint32_t steps() const { return steps_seen_ ? steps_seen_ : options_.steps; }
   void log(RunAction::Level level, const std::string& text);
+  void log_repeating(const std::string& text);
   RunActions take_actions();
 
   RunOptions options_;

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "accel_intrinsics/GimbalCommand.h"
+#include "accel_intrinsics/AbortRun.h"
 #include "accel_intrinsics/ResumeAt.h"
 #include "accel_intrinsics/core/protocol.h"
 #include "accel_intrinsics/ros/gimbal_driver.h"
@@ -85,6 +86,7 @@ class GimbalControllerNode {
   void on_timer(const ros::TimerEvent& event);
   bool on_start(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool on_abort(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool on_abort_run(AbortRun::Request& req, AbortRun::Response& res);
   bool on_resume(ResumeAt::Request& req, ResumeAt::Response& res);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
   void begin_move(std::size_t index, const ros::Time& now);
@@ -97,7 +99,7 @@ class GimbalControllerNode {
   GimbalControllerOptions options_;
   std::unique_ptr<GimbalDriver> driver_;
   ros::Publisher command_pub_, tf_pub_, progress_pub_;
-  ros::ServiceServer start_srv_, abort_srv_, resume_srv_;
+  ros::ServiceServer start_srv_, abort_srv_, abort_run_srv_, resume_srv_;
   ros::Timer timer_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
 

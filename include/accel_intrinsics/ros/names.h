@@ -9,6 +9,8 @@ constexpr char kImuTopic[] = "imu/data_raw";
 constexpr char kResultTopic[] = "calibration/result";
 constexpr char kStartService[] = "gimbal_controller/start";
 constexpr char kAbortService[] = "gimbal_controller/abort";
+// accel_intrinsics/AbortRun: abort with a reason (the calibration node's watchdogs use it).
+constexpr char kAbortRunService[] = "gimbal_controller/abort_run";
 constexpr char kResetService[] = "calibration/reset";
 constexpr char kGetIntrinsicsService[] = "calibration/get_intrinsics";
 // Not in the contract table, added by the online stand (additive):
