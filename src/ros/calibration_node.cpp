@@ -307,11 +307,11 @@ void CalibrationNode::publish_report(const core::CalibrationReport& report,
   }
 }
 
-void CalibrationNode::publish_analysis(const core::CalibrationReport& report,
-                                       const ros::Time& stamp) {
+std::string CalibrationNode::publish_analysis(const core::CalibrationReport& report,
+                                              const ros::Time& stamp) {
   if (!report.analysis) {
     ROS_ERROR("calibration: analysis failed: %s", report.analysis_error.c_str());
-    return;
+    return "analysis failed: " + report.analysis_error;
   }
   io::ResultContext context;
   context.stamp_s = stamp.toSec();
@@ -336,6 +336,7 @@ void CalibrationNode::publish_analysis(const core::CalibrationReport& report,
       << report.timing_lag->message;
   }
   ROS_INFO("calibration: analysis: %s", s.str().c_str());
+  return s.str();
 }
 
 void CalibrationNode::fit_loop() {
@@ -416,13 +417,8 @@ bool CalibrationNode::on_analyze(std_srvs::Trigger::Request&, std_srvs::Trigger:
     }
     if (!report.analysis) throw std::runtime_error(report.analysis_error);
     const ros::Time now = ros::Time::now();
-    publish_analysis(report, now);
+    res.message = publish_analysis(report, now);
     if (run_.has_result() && report.certificate_is_refit) publish_report(report, now);
-    std::ostringstream s;
-    s << "named " << report.analysis->effects.size() << " effect(s); certificate "
-      << (run_.has_result() ? report.certificate.model_label() : "(no result yet)");
-    if (report.timing_lag) s << "; timing lag: " << report.timing_lag->message;
-    res.message = s.str();
     res.success = true;
   } catch (const std::exception& e) {
     std::lock_guard<std::recursive_mutex> lock(mutex_);

@@ -87,7 +87,8 @@ class CalibrationNode {
                   const std::string& error, const ros::Time& stamp);
   // The certificate and the analysis out: message, topics, files. Under the lock.
   void publish_report(const core::CalibrationReport& report, const ros::Time& stamp);
-  void publish_analysis(const core::CalibrationReport& report, const ros::Time& stamp);
+  // Returns the one-line summary (logged, and the analyze service's answer).
+  std::string publish_analysis(const core::CalibrationReport& report, const ros::Time& stamp);
   void publish_status(const ros::Time& now);
   void diagnose_imu(diagnostic_updater::DiagnosticStatusWrapper& status);
   void diagnose_run(diagnostic_updater::DiagnosticStatusWrapper& status);
