@@ -8,8 +8,8 @@
 // ~resume_approach at start-up: the next start or autostart begins there), and a running,
 // finished or aborted protocol can be moved to one: gimbal_controller/resume (srv/ResumeAt.srv:
 // phase, step, approach, after = the position after that one, reason) answers with the stamp of
-// the MOVING (or DONE) it published. gimbal_controller/abort (std_srvs/Trigger, as start) takes
-// its reason from ~request/abort_reason when set.
+// the MOVING (or DONE) it published. gimbal_controller/abort (std_srvs/Trigger, as start) aborts
+// by hand; gimbal_controller/abort_run (srv/AbortRun.srv) aborts with a reason.
 #pragma once
 
 #include <diagnostic_updater/diagnostic_updater.h>

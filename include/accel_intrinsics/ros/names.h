@@ -26,8 +26,7 @@ constexpr char kClockTopic[] = "/clock";
 constexpr char kAnalysisTopic[] = "calibration/analysis";
 // std_srvs/Trigger: run the analysis on the current position table.
 constexpr char kAnalyzeService[] = "calibration/analyze";
-// std_srvs/Trigger: continue the protocol at the position named by the controller's private
-// parameters resume_phase, resume_step, resume_approach, resume_after (set them, then call).
+// accel_intrinsics/ResumeAt: continue the protocol at (phase, step, approach), or after it.
 constexpr char kResumeService[] = "gimbal_controller/resume";
 
 constexpr char kWorldFrame[] = "world";
