@@ -24,7 +24,7 @@
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/ResumeAt.h"
 #include "accel_intrinsics/core/protocol.h"
-#include "accel_intrinsics/ros/gimbal_driver.h"
+#include "accel_intrinsics/drivers/gimbal_driver.h"
 
 namespace accel_intrinsics {
 
