@@ -1,5 +1,5 @@
-// libFuzzer target for bag input (src/ros/bag_input.cpp): arbitrary bytes, written to a temporary
-// file, go through read_bag() twice: once with the memory-mapped chunk scan allowed (so the
+// libFuzzer target for bag input (src/ros/bag_format.cpp, bag_topics.cpp, bag_input.cpp):
+// arbitrary bytes, written to a temporary file, go through read_bag() twice: once with the memory-mapped chunk scan allowed (so the
 // scanner's index parse, its "does this bag qualify" decision and, when it does not, the fallback
 // to rosbag::Bag/View all run) and once forced through rosbag. The contract: either a result or a
 // BagInputError with a one-line, non-empty message. Any other exception, a crash, a sanitizer

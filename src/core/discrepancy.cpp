@@ -49,6 +49,17 @@ std::array<bool, 3> two_way_phases(const std::vector<DwellGeometry>& geoms) {
   return {{up[0] && down[0], up[1] && down[1], up[2] && down[2]}};
 }
 
+// Whether the dwell means of a run with these two-way phases can show `effect` (its catalog
+// precondition): raw-stream effects never, two-way effects only on a two-way phase.
+bool screenable(const Effect& effect, const std::array<bool, 3>& two_way) {
+  switch (effect_info(effect.kind).precondition) {
+    case Precondition::None: return true;
+    case Precondition::TwoWaySweep: return two_way[effect.target];
+    case Precondition::RawStreams: return false;
+  }
+  return false;
+}
+
 // Standard errors of the dwell means, the weights of every fit.
 std::vector<Eigen::Vector3d> weights_for(const PositionTable& table, const FitResult& fit) {
   if (fit.standard_errors.size() == table.rows.size()) return fit.standard_errors;
@@ -255,36 +266,6 @@ Screening screen(const PositionTable& table, const std::vector<DwellGeometry>& g
   return out;
 }
 
-std::string separating_experiment(const Effect& a, const Effect& b) {
-  auto pair_is = [&](EffectKind x, EffectKind y) {
-    return (a.kind == x && b.kind == y) || (a.kind == y && b.kind == x);
-  };
-  if (pair_is(EffectKind::AngleOffset, EffectKind::Backlash)) {
-    return "a two-way sweep (ProtocolOptions::two_way: up, then back down) separates backlash from an "
-           "angle offset: backlash flips sign with the direction of approach, an offset does not";
-  }
-  if (pair_is(EffectKind::AngleScale, EffectKind::OffsetDrift)) {
-    return "a closing position at 360 deg (ProtocolOptions::closing_position, "
-           "closing_position: true in config/protocol.yaml: repeat alpha = 0 at the end of each "
-           "phase) separates drift from an angle-scale error: at the repeated position drift "
-           "changes every output by d * dt, an angle-scale error by eps * 2 pi times the slope of "
-           "that output (zero at its extremum); a two-way sweep, which decouples time from angle, "
-           "also separates them";
-  }
-  if (pair_is(EffectKind::AngleScale, EffectKind::AngleOffset)) {
-    return "a closing position at 360 deg (closing_position: true in config/protocol.yaml) "
-           "separates an angle-scale error from an angle offset: it is the 0 deg position again, "
-           "so an offset reads the same there while a scale error has grown to eps * 2 pi";
-  }
-  if (a.kind == EffectKind::OffsetDrift || b.kind == EffectKind::OffsetDrift) {
-    return "repeating the run in another phase order or with a closing position "
-           "(closing_position: true in config/protocol.yaml) decouples time from position and "
-           "separates drift from the other term";
-  }
-  return "a protocol that decouples the two terms (more positions, other phase order, a two-way "
-         "sweep) separates them; compare the per-harmonic residual power of both models";
-}
-
 double ambiguity_threshold_corr(const Screening& s, int a_row, int b_row) {
   return std::abs(s.correlation(a_row, b_row));
 }
@@ -312,14 +293,11 @@ void validate(const AnalysisOptions& options) {
 std::vector<Effect> default_candidates(const PositionTable& table) {
   const std::array<bool, 3> two_way = two_way_phases(dwell_geometries(table));
   std::vector<Effect> out;
-  for (int s = 0; s < 3; ++s) out.push_back(Effect{EffectKind::QuadraticNonlinearity, s, 0.0});
-  for (int s = 0; s < 3; ++s) out.push_back(Effect{EffectKind::CubicNonlinearity, s, 0.0});
-  for (int p = 0; p < 3; ++p) out.push_back(Effect{EffectKind::AngleOffset, p, 0.0});
-  for (int p = 0; p < 3; ++p) out.push_back(Effect{EffectKind::AngleScale, p, 0.0});
-  for (int p = 0; p < 3; ++p) out.push_back(Effect{EffectKind::AxisTilt, p, 0.0});
-  for (int s = 0; s < 3; ++s) out.push_back(Effect{EffectKind::OffsetDrift, s, 0.0});
-  for (int p = 0; p < 3; ++p) {
-    if (two_way[p]) out.push_back(Effect{EffectKind::Backlash, p, 0.0});
+  for (const EffectInfo& info : effect_catalog()) {
+    for (int target : effect_targets(info.kind)) {
+      const Effect effect{info.kind, target, 0.0};
+      if (screenable(effect, two_way)) out.push_back(effect);
+    }
   }
   return out;
 }
@@ -475,26 +453,23 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
   {
     std::vector<Effect> kept;
     for (const Effect& c : candidates) {
-      if (c.kind == EffectKind::TimingLag) continue;  // reported below
+      // Effects that need raw streams: reported below, whatever their target.
+      if (effect_info(c.kind).precondition == Precondition::RawStreams) continue;
       if (c.target < 0 || c.target > 2) {
         throw std::invalid_argument("analysis: candidate " + c.name() + " has target index " +
                                     std::to_string(c.target) + "; expected 0..2");
       }
-      if (c.kind == EffectKind::Backlash && !two_way[c.target]) continue;
+      if (!screenable(c, two_way)) continue;
       if (contains_term(options.base_effects, c) || contains_term(kept, c)) continue;
       kept.push_back(c);
     }
     candidates = kept;
   }
-  result.not_screened.push_back(
-      "timing_lag[all]: moves IMU stamps relative to the gimbal; dwell means taken after settling do "
-      "not show it, only raw streams (a bag, or simulate_recording) do: estimate_timing_lag() in raw_stream_analysis.h");
-  for (int p = 0; p < 3; ++p) {
-    if (!two_way[p]) {
-      result.not_screened.push_back(std::string("backlash[") + phase_name(static_cast<Phase>(p)) +
-                                    "]: phase " + phase_name(static_cast<Phase>(p)) +
-                                    " was swept one way only, where backlash is identical to angle_offset[" +
-                                    phase_name(static_cast<Phase>(p)) + "] (b/2); a two-way sweep reveals it");
+  // What the dwell means of this run cannot show, per effect and target, from the catalog.
+  for (const EffectInfo& info : effect_catalog()) {
+    for (int target : effect_targets(info.kind)) {
+      const Effect effect{info.kind, target, 0.0};
+      if (!screenable(effect, two_way)) result.not_screened.push_back(effect.label() + ": " + unmet_precondition_note(effect));
     }
   }
   std::ostringstream gnote;
@@ -616,14 +591,18 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
     }
     result.effects.push_back(named);
     if (amb.candidates.size() > 1) result.ambiguous.push_back(amb);
-    if (chosen.effect.kind == EffectKind::AngleOffset && !two_way[chosen.effect.target]) {
-      Ambiguity bl;
-      bl.named = chosen.effect.label();
-      Effect b{EffectKind::Backlash, chosen.effect.target, 0.0};
-      bl.candidates = {chosen.effect.label(), b.label()};
-      bl.correlation = 1.0;
-      bl.separating_experiment = separating_experiment(chosen.effect, b);
-      result.ambiguous.push_back(bl);
+    // An effect the run cannot screen may look exactly like the one named (backlash on a one-way
+    // phase is an angle offset): report the pair, with the experiment that separates them.
+    for (const EffectInfo& info : effect_catalog()) {
+      if (!info.has_look_alike || info.same_as_when_unmet != chosen.effect.kind) continue;
+      const Effect look_alike{info.kind, chosen.effect.target, 0.0};
+      if (screenable(look_alike, two_way)) continue;
+      Ambiguity same;
+      same.named = chosen.effect.label();
+      same.candidates = {chosen.effect.label(), look_alike.label()};
+      same.correlation = 1.0;
+      same.separating_experiment = separating_experiment(chosen.effect, look_alike);
+      result.ambiguous.push_back(same);
     }
 
     Effect added = chosen.effect;

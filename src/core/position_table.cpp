@@ -177,36 +177,46 @@ double effective_time_origin(const PositionTable& table) {
   return std::isfinite(t0) ? t0 : 0.0;
 }
 
+int ApproachTracker::approach_of(Phase phase, double angle_rad) const {
+  const int p = index(phase);
+  if (!seen_[p] || angle_rad > previous_angle_[p]) return +1;
+  if (angle_rad < previous_angle_[p]) return -1;
+  return -previous_approach_[p];
+}
+
+int ApproachTracker::visit(Phase phase, double angle_rad) {
+  const int approach = approach_of(phase, angle_rad);
+  const int p = index(phase);
+  seen_[p] = true;
+  previous_angle_[p] = angle_rad;
+  previous_approach_[p] = approach;
+  return approach;
+}
+
+DwellGeometry dwell_inputs(const DwellRecord& row, double time_origin_s, int approach) {
+  DwellGeometry inputs;
+  inputs.phase = row.phase;
+  inputs.angle_rad = row.angle_rad;
+  inputs.time_s = 0.5 * (row.t_start_s + row.t_end_s) - time_origin_s;
+  inputs.approach = approach;
+  return inputs;
+}
+
 std::vector<DwellGeometry> dwell_geometries(const PositionTable& table) {
   const double t0 = effective_time_origin(table);
   std::vector<DwellGeometry> geometries;
   geometries.reserve(table.rows.size());
-  // Direction of approach per phase, from the order of visits: increasing angle = +1,
-  // decreasing = -1, and a repeated angle means the sweep reversed there.
-  bool seen[3] = {false, false, false};
-  double previous_angle[3] = {0, 0, 0};
-  int previous_approach[3] = {+1, +1, +1};
+  ApproachTracker approach;
   for (const DwellRecord& row : table.rows) {
-    const int p = index(row.phase);
-    DwellGeometry geom;
-    geom.phase = row.phase;
-    geom.angle_rad = row.angle_rad;
-    geom.time_s = 0.5 * (row.t_start_s + row.t_end_s) - t0;
-    if (!seen[p]) {
-      geom.approach = +1;
-    } else if (row.angle_rad > previous_angle[p]) {
-      geom.approach = +1;
-    } else if (row.angle_rad < previous_angle[p]) {
-      geom.approach = -1;
-    } else {
-      geom.approach = -previous_approach[p];
-    }
-    seen[p] = true;
-    previous_angle[p] = row.angle_rad;
-    previous_approach[p] = geom.approach;
-    geometries.push_back(geom);
+    geometries.push_back(dwell_inputs(row, t0, approach.visit(row.phase, row.angle_rad)));
   }
   return geometries;
+}
+
+int approach_of_appended_row(const PositionTable& table, Phase phase, double angle_rad) {
+  ApproachTracker approach;
+  for (const DwellRecord& row : table.rows) approach.visit(row.phase, row.angle_rad);
+  return approach.approach_of(phase, angle_rad);
 }
 
 std::array<int, 3> positions_per_phase(const PositionTable& table) {

@@ -82,9 +82,7 @@ std::vector<ScheduledPosition> schedule_from_commands(const std::vector<GimbalEv
     return commands[a].stamp_s < commands[b].stamp_s;
   });
 
-  bool seen[kNumPhases] = {false, false, false};
-  double previous_angle[kNumPhases] = {0.0, 0.0, 0.0};
-  int previous_approach[kNumPhases] = {+1, +1, +1};
+  ApproachTracker approach;  // the rule of dwell_geometries()
 
   bool pending = false;      // a MOVING waits for its SETTLED
   ScheduledPosition moving;  // that MOVING
@@ -111,17 +109,7 @@ std::vector<ScheduledPosition> schedule_from_commands(const std::vector<GimbalEv
         pending = false;
         moving.settled_s = t;
         moving.dwell_end_s = kInf;
-        const int p = index(moving.phase);
-        if (!seen[p] || moving.angle_rad > previous_angle[p]) {
-          moving.approach = +1;
-        } else if (moving.angle_rad < previous_angle[p]) {
-          moving.approach = -1;
-        } else {
-          moving.approach = -previous_approach[p];
-        }
-        seen[p] = true;
-        previous_angle[p] = moving.angle_rad;
-        previous_approach[p] = moving.approach;
+        moving.approach = approach.visit(moving.phase, moving.angle_rad);
         schedule.push_back(moving);
         dwelling = true;
         break;

@@ -119,11 +119,7 @@ PositionTable simulate_position_table(const SimulationOptions& options) {
     row.t_start_s = position.settled_s;
     row.t_end_s = position.dwell_end_s;
     row.n = samples_in_window(row.t_start_s, row.t_end_s, options.rate_hz);
-    DwellGeometry geom;
-    geom.phase = position.phase;
-    geom.angle_rad = position.angle_rad;
-    geom.time_s = 0.5 * (row.t_start_s + row.t_end_s);
-    geom.approach = position.approach;
+    const DwellGeometry geom = dwell_inputs(row, table.time_origin_s, position.approach);
     const Eigen::Vector3d truth = predict_outputs(options.truth, geom, options.local_gravity);
     const double n = static_cast<double>(row.n);
     for (int k = 0; k < 3; ++k) {

@@ -21,12 +21,38 @@ enum class EffectKind {
 
 enum class TargetKind { Accelerometer, Phase, All };
 
+// What a run must contain before its dwell means can show an effect.
+enum class Precondition {
+  None,
+  TwoWaySweep,  // the phase approached from both sides (ProtocolOptions::two_way)
+  RawStreams,   // the samples and gimbal events themselves, not dwell means (a bag, a recording)
+};
+
+// The experiment that separates two effects whose signatures in a run are alike.
+struct Separation {
+  EffectKind other;
+  const char* experiment;
+};
+
 struct EffectInfo {
   EffectKind kind;
   const char* name;  // as in DESIGN.md, e.g. "quadratic_nonlinearity"
   TargetKind target_kind;
   const char* unit;
   const char* description;
+  bool acts_on_gimbal;  // a term of the gimbal angle (true_angle), not of the sensor
+  Precondition precondition;
+  // Why the analysis cannot screen the effect when the precondition is not met; "{target}" stands
+  // for the target's name. Empty when the precondition is None.
+  const char* unmet_precondition_note;
+  // The effect it cannot be told from while its precondition is unmet (same target), if any: the
+  // analysis then reports a named `same_as_when_unmet` as ambiguous with this one.
+  bool has_look_alike;
+  EffectKind same_as_when_unmet;
+  // Pairs with a specific separating experiment, and the experiment for any other partner
+  // (nullptr: the generic advice).
+  std::vector<Separation> separations;
+  const char* separation_from_any_other;
 };
 
 // Every effect kind, in the order of EffectKind.
@@ -48,8 +74,18 @@ struct Effect {
 // wrong (unknown name, or a target that does not fit the effect's kind).
 Effect make_effect(const std::string& name, const std::string& target, double value = 0.0);
 
-// Effects that act on the gimbal angle rather than the sensor.
+// Effects that act on the gimbal angle rather than the sensor (EffectInfo::acts_on_gimbal).
 bool is_gimbal_effect(EffectKind kind);
+
+// The targets an effect of this kind can have: 0..2 (u/v/w or x/y/z), or {0} for "all".
+std::vector<int> effect_targets(EffectKind kind);
+
+// The catalog's experiment that separates effects `a` and `b` (in either order; a pair entry
+// first, then an effect's experiment for any other partner, then the generic advice).
+std::string separating_experiment(const Effect& a, const Effect& b);
+
+// EffectInfo::unmet_precondition_note of `effect`, for its target: "phase x was swept one way...".
+std::string unmet_precondition_note(const Effect& effect);
 
 }  // namespace core
 }  // namespace accel_intrinsics

@@ -70,9 +70,30 @@ void write_position_table_file(const std::string& path, const PositionTable& tab
 // Appends one row (no header) and flushes: the checkpoint of a completed dwell.
 void write_position_row(std::ostream& out, const DwellRecord& row);
 
-// The model geometry of each row: mid-dwell time relative to t0, and the direction of approach,
-// inferred from the order of rows in each phase (the first visit of a phase counts as +1).
+// The one rule for the direction of approach of a visit, from the order of visits per phase: the
+// first visit of a phase is +1, a higher angle than the previous visit +1, a lower one -1, and
+// the same angle again means the sweep turned there (the opposite of the previous approach).
+class ApproachTracker {
+ public:
+  // The approach of a visit to `angle_rad` in `phase` after the visits seen so far.
+  int approach_of(Phase phase, double angle_rad) const;
+  // approach_of(), and records the visit.
+  int visit(Phase phase, double angle_rad);
+
+ private:
+  bool seen_[3] = {false, false, false};
+  double previous_angle_[3] = {0.0, 0.0, 0.0};
+  int previous_approach_[3] = {+1, +1, +1};
+};
+
+// The model's per-dwell inputs of one row (mid-dwell time relative to t0, angle, phase, approach).
+DwellGeometry dwell_inputs(const DwellRecord& row, double time_origin_s, int approach);
+
+// The model's per-dwell inputs of each row (dwell_inputs), the approach from ApproachTracker.
 std::vector<DwellGeometry> dwell_geometries(const PositionTable& table);
+
+// The approach of a row at `angle_rad` in `phase` that would be appended to `table`.
+int approach_of_appended_row(const PositionTable& table, Phase phase, double angle_rad);
 double effective_time_origin(const PositionTable& table);
 
 // Dwells per phase.

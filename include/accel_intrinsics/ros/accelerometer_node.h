@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "accel_intrinsics/GimbalCommand.h"
-#include "accel_intrinsics/ros/accelerometer_source.h"
+#include "accel_intrinsics/drivers/accelerometer_source.h"
 
 namespace accel_intrinsics {
 

@@ -1,28 +1,21 @@
-// Reads a recorded run from a bag with the rosbag C++ API (no playback) and feeds the gimbal
-// commands and IMU samples, in bag (receive) order, to core::DwellAssembler: the same dwell
-// assignment the calibration node runs online, so offline and online agree to the last digit.
+// Reads a recorded run from a bag (no playback) and feeds the gimbal commands and IMU samples, in
+// bag (receive) order, to core::DwellAssembler: the same dwell assignment the calibration node
+// runs online, so offline and online agree to the last digit. The parts: bag_format.h (the file
+// format, the chunk scan, the structure check), bag_topics.h (which topics hold the run), and
+// this feed loop (messages to the assembler, through the chunk scan or rosbag::View).
 #pragma once
-
-#include <rosbag/bag.h>
 
 #include <cstdint>
 #include <iosfwd>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/ros/bag_topics.h"
 #include "accel_intrinsics/ros/names.h"
 
 namespace accel_intrinsics {
-
-// Every failure to read a usable run: missing file, corrupt or truncated bag, topic not in the
-// bag (the message names it and lists the bag's topics), wrong message type. One line of text.
-class BagInputError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 struct BagInputOptions {
   // Topic names as requested: "imu/data_raw" matches "/imu/data_raw" and a single namespaced
@@ -56,13 +49,6 @@ struct BagInputOptions {
   std::vector<core::ImuSample>* raw_samples = nullptr;
 };
 
-// A topic of the bag with its message type, e.g. {"/imu/data_raw", "sensor_msgs/Imu"}.
-struct BagTopic {
-  std::string name;
-  std::string datatype;
-  std::uint64_t messages = 0;
-};
-
 struct BagInputStats {
   std::string path;
   std::string imu_topic;      // as resolved in the bag
@@ -72,10 +58,10 @@ struct BagInputStats {
   // Rejected as the calibration node rejects them: phase or state outside the constants, angle
   // not finite, steps 0 or step >= steps, zero stamp.
   std::uint64_t invalid_commands = 0;
-  double bag_start_s = 0.0;            // bag (receive) time of the first and last message read
+  double bag_start_s = 0.0;  // bag (receive) time of the first and last message read
   double bag_end_s = 0.0;
-  double read_wall_s = 0.0;            // wall time spent reading and assembling
-  bool done_seen = false;              // the controller's DONE was in the bag
+  double read_wall_s = 0.0;  // wall time spent reading and assembling
+  bool done_seen = false;    // the controller's DONE was in the bag
   // The dwell that was still open when the bag ended (no DONE): it is not in the table.
   bool open_dwell = false;
   core::Phase open_dwell_phase = core::Phase::X;
@@ -91,26 +77,6 @@ struct BagRun {
   core::PositionTable table;
   BagInputStats stats;
 };
-
-// The bag's topics, sorted by name.
-std::vector<BagTopic> list_topics(rosbag::Bag& bag);
-// "/a (type, N msgs), /b (...)" for messages.
-std::string describe_topics(const std::vector<BagTopic>& topics);
-
-// Finds the bag topic meant by `requested`. Rules, in order:
-//   1. exact match, ignoring one leading '/' on either side;
-//   2. unless `requested` starts with '/': topics ending in "/<requested>" (namespaced); one
-//      candidate wins, several are narrowed to the one in `preferred_namespace` (e.g. the
-//      namespace of the other topic, "/stand1/"), else the lookup is ambiguous.
-// Throws BagInputError naming the topic and listing the bag's topics when none or several match,
-// or when the match has a type other than `expected_datatype` (empty = any).
-std::string resolve_topic(const std::string& requested, const std::vector<BagTopic>& topics,
-                          const std::string& expected_datatype,
-                          const std::string& preferred_namespace = "");
-
-// The namespace prefix of a resolved topic given the requested relative name:
-// ("/stand1/imu/data_raw", "imu/data_raw") -> "/stand1/"; "/" when not namespaced.
-std::string topic_namespace(const std::string& resolved, const std::string& requested);
 
 // Opens `path`, resolves both topics and feeds every message of them, in bag order, to
 // `assembler`, then flushes it. The assembler's dwell callback and table are the caller's.

@@ -25,7 +25,7 @@
 #include "accel_intrinsics/AbortRun.h"
 #include "accel_intrinsics/ResumeAt.h"
 #include "accel_intrinsics/core/protocol.h"
-#include "accel_intrinsics/ros/gimbal_driver.h"
+#include "accel_intrinsics/drivers/gimbal_driver.h"
 
 namespace accel_intrinsics {
 

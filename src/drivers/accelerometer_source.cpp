@@ -1,5 +1,5 @@
 // Simulated accelerometer backend: truth device of model.h at the orientation from tf.
-#include "accel_intrinsics/ros/accelerometer_source.h"
+#include "accel_intrinsics/drivers/accelerometer_source.h"
 
 #include <algorithm>
 #include <cmath>

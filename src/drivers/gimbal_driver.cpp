@@ -1,5 +1,5 @@
 // Simulated gimbal backend and the tf chain that realizes DESIGN.md eq. (4).
-#include "accel_intrinsics/ros/gimbal_driver.h"
+#include "accel_intrinsics/drivers/gimbal_driver.h"
 
 #include <algorithm>
 #include <cmath>

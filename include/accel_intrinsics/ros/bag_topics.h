@@ -1,0 +1,45 @@
+// Which topics of a bag hold the run: the bag's topic list and the rules that turn a requested
+// name ("imu/data_raw", "/stand1/imu/data_raw") into a topic of the bag.
+#pragma once
+
+#include <rosbag/bag.h>
+
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/ros/bag_format.h"
+
+namespace accel_intrinsics {
+
+// The bag's topics, sorted by name.
+std::vector<BagTopic> list_topics(rosbag::Bag& bag);
+// "/a (type, N msgs), /b (...)" for messages.
+std::string describe_topics(const std::vector<BagTopic>& topics);
+
+// Finds the bag topic meant by `requested`. Rules, in order:
+//   1. exact match, ignoring one leading '/' on either side;
+//   2. unless `requested` starts with '/': topics ending in "/<requested>" (namespaced); one
+//      candidate wins, several are narrowed to the one in `preferred_namespace` (e.g. the
+//      namespace of the other topic, "/stand1/"), else the lookup is ambiguous.
+// Throws BagInputError naming the topic and listing the bag's topics when none or several match,
+// or when the match has a type other than `expected_datatype` (empty = any).
+std::string resolve_topic(const std::string& requested, const std::vector<BagTopic>& topics,
+                          const std::string& expected_datatype,
+                          const std::string& preferred_namespace = "");
+
+// The namespace prefix of a resolved topic given the requested relative name:
+// ("/stand1/imu/data_raw", "imu/data_raw") -> "/stand1/"; "/" when not namespaced.
+std::string topic_namespace(const std::string& resolved, const std::string& requested);
+
+// The IMU (sensor_msgs/Imu) and gimbal command (accel_intrinsics/GimbalCommand) topics of a run.
+struct RunTopics {
+  std::string imu;
+  std::string command;
+};
+
+// Resolves both topics of a run with resolve_topic(); when one of them is ambiguous between
+// namespaces, the namespace of the other decides (several stands recorded in one bag).
+RunTopics resolve_run_topics(const std::string& imu_requested, const std::string& command_requested,
+                             const std::vector<BagTopic>& topics);
+
+}  // namespace accel_intrinsics
