@@ -91,6 +91,7 @@ void CalibrationRun::emit_fit() {
     a.move_commands = moves_.commands();
     a.move_samples = moves_.samples();
   }
+  a.counters = counters();
   a.fit_ticket = ++fit_ticket_;
   fitting_ = true;
   actions_.push_back(std::move(a));
@@ -124,17 +125,18 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
       begin_resume("calibration node restarted from its checkpoint");
     }
   }
-  const bool previous_run_over =
-      done_pending_ || assembler_.done() || have_result_ || !fit_error_.empty() || !fault_.empty();
-  if (run_start && previous_run_over && blackouts_.empty()) {
+  const bool previous_run_over = done_pending_ || assembler_.done() || have_result_ || fitting_ ||
+                                 !fit_error_.empty() || !fault_.empty();
+  if (run_start && previous_run_over && !rewind_pending()) {
     if (done_pending_ && fault_.empty()) {
       // The previous run's DONE is still in the reorder window: finish it first.
       assembler_.flush();
       process_completed_rows();
       done_pending_ = false;
       emit_fit();
-      superseded_fit_ticket_ = fit_ticket_;
     }
+    // The previous run's fit (just handed out, or still running) goes out all the same.
+    if (fitting_) superseded_fit_ticket_ = fit_ticket_;
     RunActions after_reset = reset("a new run starts (MOVING to phase x step 0 after DONE)");
     for (RunAction& a : after_reset) actions_.push_back(std::move(a));
     ++commands_in_run_;
@@ -262,6 +264,7 @@ RunActions CalibrationRun::tick(double now_s) {
     RunAction a;
     a.kind = pending_ == Pending::Resume ? RunAction::Kind::ResumeAt : RunAction::Kind::Abort;
     a.request = request_;
+    a.request.run_generation = run_generation_;
     pending_ = Pending::None;
     actions_.push_back(std::move(a));
   }
@@ -271,6 +274,7 @@ RunActions CalibrationRun::tick(double now_s) {
 RunActions CalibrationRun::on_resume_reply(const ControllerRequest& request, bool reached,
                                            bool success, const std::string& message,
                                            double moving_stamp_s, double now_s) {
+  if (request.run_generation != run_generation_) return take_actions();  // of a reset run
   if (!reached) {
     // The controller is not there (yet): ask again in a moment.
     if (!unreached_warned_) {
@@ -303,6 +307,7 @@ RunActions CalibrationRun::on_resume_reply(const ControllerRequest& request, boo
 
 RunActions CalibrationRun::on_abort_reply(const ControllerRequest& request, bool reached,
                                           const std::string& message, double now_s) {
+  if (request.run_generation != run_generation_) return take_actions();  // of a reset run
   if (!reached) {
     if (!unreached_warned_) {
       log(RunAction::Level::Warn, "gimbal_controller/abort not available; retrying");
@@ -322,7 +327,7 @@ RunActions CalibrationRun::on_abort_reply(const ControllerRequest& request, bool
 
 bool CalibrationRun::fit_may_publish(std::uint64_t fit_ticket) const {
   if (fit_ticket != 0 && fit_ticket == superseded_fit_ticket_) return true;
-  return fit_ticket == fit_ticket_ && fitting_ && !aborted() && !rewind_pending();
+  return fit_ticket == fit_ticket_ && fitting_ && fault_.empty() && !rewind_pending();
 }
 
 RunActions CalibrationRun::on_fit_finished(std::uint64_t fit_ticket, bool published,
@@ -379,8 +384,8 @@ RunActions CalibrationRun::reset(const std::string& reason) {
   counters_before_ = AssemblerCounters();
   commands_rejected_ = 0;
   commands_in_run_ = 0;
+  ++run_generation_;
   table_ = PositionTable();
-  steps_seen_ = 0;
   rows_discarded_ = 0;
   restored_ = false;
   resume_pending_ = false;
@@ -454,14 +459,7 @@ void CalibrationRun::accept_row(const DwellRecord& row) {
 }
 
 int CalibrationRun::approach_of_next_row(Phase phase, std::uint32_t step) const {
-  PositionTable t = table_;
-  DwellRecord r;
-  r.phase = phase;
-  r.step = step;
-  r.angle_rad = step_angle(step, std::max(steps(), 1u));
-  r.n = 1;
-  t.rows.push_back(r);
-  return dwell_geometries(t).back().approach;
+  return approach_of_appended_row(table_, phase, step_angle(step, std::max(steps(), 1u)));
 }
 
 void CalibrationRun::raise_fault(const std::string& what, Phase phase, std::uint32_t step,
@@ -511,6 +509,9 @@ void CalibrationRun::restart_assembler() {
   // buffered are dropped with the old one; its counters carry over. Never called from inside the
   // assembler (its rows are processed after it returns).
   add_counters(assembler_.counters(), &counters_before_);
+  if (!assembler_.counters().last_warning.empty()) {  // the newest warning wins
+    counters_before_.last_warning = assembler_.counters().last_warning;
+  }
   assembler_.reset();
   connect_assembler();  // also clears the recorded moves: the lag uses those after the rewind
   warned_ = AssemblerCounters();
@@ -636,7 +637,7 @@ RunState CalibrationRun::state() const {
   if (rewind_pending()) return RunState::WaitingForResume;
   if (!fit_error_.empty()) return RunState::FitFailed;
   if (done_pending_ || fitting_) return RunState::Fitting;
-  if (commands_in_run_ == 0 && table_.rows.empty()) return RunState::Idle;
+  if (commands_in_run_ == 0) return RunState::Idle;
   return live_in_dwell_ ? RunState::Dwelling : RunState::Running;
 }
 

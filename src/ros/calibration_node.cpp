@@ -111,6 +111,10 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
 }
 
 CalibrationNode::~CalibrationNode() {
+  {
+    std::lock_guard<std::recursive_mutex> lock(mutex_);
+    shutting_down_ = true;  // a fit still running is finished and discarded
+  }
   imu_sub_.shutdown();
   command_sub_.shutdown();
   timer_.stop();
@@ -240,7 +244,8 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
           result_ = IntrinsicResult();
           ++resets_;
           std::lock_guard<std::mutex> job_lock(job_mutex_);
-          job_.reset();
+          // The final fit of a run that a new run replaced still goes out.
+          if (job_ && !run_.fit_may_publish(job_->ticket)) job_.reset();
           break;
         }
         case Kind::FitNow:
@@ -249,7 +254,7 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
             {
               std::lock_guard<std::mutex> job_lock(job_mutex_);
               job_ = FitJob{a.fit_ticket, a.table, {a.move_commands, a.move_samples},
-                            ros::Time::now()};
+                            a.counters, ros::Time::now()};
             }
             job_cv_.notify_one();
             ROS_INFO("calibration: fitting %zu dwells; the discrepancy analysis runs, the result "
@@ -260,9 +265,9 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
             try {
               const core::CalibrationReport report =
                   core::calibrate(a.table, nullptr, options_.calibrate);
-              finish_fit(a.fit_ticket, &report, "", now);
+              finish_fit(a.fit_ticket, &report, a.counters, "", now);
             } catch (const std::exception& e) {
-              finish_fit(a.fit_ticket, nullptr, e.what(), now);
+              finish_fit(a.fit_ticket, nullptr, a.counters, e.what(), now);
             }
           }
           break;
@@ -279,29 +284,36 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
 }
 
 void CalibrationNode::finish_fit(std::uint64_t ticket, const core::CalibrationReport* report,
+                                 const core::AssemblerCounters& counters,
                                  const std::string& error, const ros::Time& stamp) {
-  const bool publish = report != nullptr && run_.fit_may_publish(ticket);
-  if (publish) publish_report(*report, stamp);
+  const bool publish = report != nullptr && !shutting_down_ && run_.fit_may_publish(ticket);
+  if (publish) {
+    if (report->analysis || !report->analysis_error.empty()) publish_analysis(*report, stamp);
+    publish_certificate(*report, counters, stamp);
+  }
   carry_out(run_.on_fit_finished(ticket, publish, report ? "" : error), nullptr);
 }
 
-void CalibrationNode::publish_report(const core::CalibrationReport& report,
-                                     const ros::Time& stamp) {
-  if (report.analysis || !report.analysis_error.empty()) publish_analysis(report, stamp);
+void CalibrationNode::publish_certificate(const core::CalibrationReport& report,
+                                          const core::AssemblerCounters& counters,
+                                          const ros::Time& stamp) {
   result_ = to_msg(report.certificate);
   result_.header.stamp = stamp;
   result_.header.frame_id = options_.frame_id;
   result_pub_.publish(result_);
+  ++fits_published_;
   ROS_INFO(
       "calibration: %s fit of %zu dwells: |u| %.6f |v| %.6f |w| %.6f, angles uv %.4f vw "
       "%.4f wu %.4f deg, reduced chi2 %.3f",
-      result_.model.c_str(), run_.table().rows.size(), result_.responsivity[0],
+      result_.model.c_str(),
+      static_cast<std::size_t>(result_.positions[0] + result_.positions[1] + result_.positions[2]),
+      result_.responsivity[0],
       result_.responsivity[1], result_.responsivity[2], result_.angles_deg[0],
       result_.angles_deg[1], result_.angles_deg[2], result_.reduced_chi2);
   if (files_.enabled()) {
     io::ResultContext context;
     context.stamp_s = stamp.toSec();
-    context.samples = run_.status(stamp.toSec()).counters;
+    context.samples = counters;
     io::write_result_yaml(files_.result_path(), report, context);
     ROS_INFO("calibration: wrote %s", files_.result_path().c_str());
   }
@@ -359,7 +371,7 @@ void CalibrationNode::fit_loop() {
     }
     std::lock_guard<std::recursive_mutex> lock(mutex_);
     try {
-      finish_fit(job.ticket, report ? &*report : nullptr, error, job.stamp);
+      finish_fit(job.ticket, report ? &*report : nullptr, job.counters, error, job.stamp);
     } catch (const std::exception& e) {
       ROS_ERROR("calibration: %s", e.what());
     }
@@ -389,6 +401,7 @@ bool CalibrationNode::on_reset(std_srvs::Trigger::Request&, std_srvs::Trigger::R
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   const std::size_t dwells = run_.table().rows.size();
   carry_out(run_.reset("reset requested"), nullptr);
+  publish_status(ros::Time::now());
   res.success = true;
   res.message = "reset: discarded " + std::to_string(dwells) + " dwells";
   return true;
@@ -398,27 +411,30 @@ bool CalibrationNode::on_analyze(std_srvs::Trigger::Request&, std_srvs::Trigger:
   // On a copy of the table without the lock; applied under the lock unless a reset came.
   core::PositionTable table;
   core::RawStreams moves;
-  std::uint64_t resets = 0;
+  std::uint64_t resets = 0, fits = 0;
   {
     std::lock_guard<std::recursive_mutex> lock(mutex_);
     table = run_.table();
     moves = {run_.recorded_moves().commands(), run_.recorded_moves().samples()};
     resets = resets_;
+    fits = fits_published_;
   }
   core::CalibrateOptions options = options_.calibrate;
   options.analyze = true;
   try {
     const core::CalibrationReport report = core::calibrate(table, &moves, options);
     std::lock_guard<std::recursive_mutex> lock(mutex_);
-    if (resets != resets_) {
+    if (resets != resets_ || fits != fits_published_) {
       res.success = false;
-      res.message = "analysis discarded: the run was reset while it ran";
+      res.message = "analysis discarded: the run was reset or fitted again while it ran";
       return true;
     }
     if (!report.analysis) throw std::runtime_error(report.analysis_error);
     const ros::Time now = ros::Time::now();
     res.message = publish_analysis(report, now);
-    if (run_.has_result() && report.certificate_is_refit) publish_report(report, now);
+    if (run_.has_result() && options_.calibrate.certificate_refit) {
+      publish_certificate(report, run_.status(now.toSec()).counters, now);
+    }
     res.success = true;
   } catch (const std::exception& e) {
     std::lock_guard<std::recursive_mutex> lock(mutex_);

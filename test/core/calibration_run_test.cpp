@@ -523,6 +523,78 @@ TEST(CalibrationRun, NewRunRightAfterDoneStillFitsThePreviousOne) {
   EXPECT_EQ(run.table().time_origin_s, start.stamp_s);
 }
 
+TEST(CalibrationRun, SecondRunAfterARunWithARetryStartsFresh) {
+  FakeStand stand;
+  const auto bad = stand.dwell_interval(Phase::Y, 0);
+  int kept = 0;
+  stand.inject_first_pass([&](const ImuSample& s) {
+    return s.stamp_s >= bad.first && s.stamp_s < bad.second && ++kept > 5;
+  });
+  RunOptions o = options_for(4);
+  o.min_samples_per_dwell = 20;
+  o.retry_on_fault = true;
+  CalibrationRun run(o);
+  stand.play(&run);
+  ASSERT_EQ(run.state(), RunState::Done);
+  ASSERT_EQ(stand.resumes_.size(), 1u);
+  // The stand runs the protocol once more: a new run, not dwells added to the finished one.
+  stand.rewind_to(ControllerRequest());  // from the first position
+  stand.play(&run);
+  ASSERT_EQ(stand.fitted_.size(), 2u);
+  expect_complete_table(stand.fitted_[1], 4);
+  EXPECT_EQ(run.state(), RunState::Done);
+  EXPECT_EQ(run.status(stand.now_s_).retries, 0u);
+}
+
+TEST(CalibrationRun, RepliesToARequestOfAResetRunAreIgnored) {
+  FakeStand stand;
+  const auto bad = stand.dwell_interval(Phase::X, 2);
+  stand.inject_first_pass(
+      [&](const ImuSample& s) { return s.stamp_s >= bad.first + 0.2 && s.stamp_s < bad.second; });
+  RunOptions o = options_for(4);
+  o.min_samples_per_dwell = 20;
+  CalibrationRun run(o);
+  stand.play(&run, bad.second + 0.5);
+  ASSERT_EQ(run.state(), RunState::Aborted);
+  ASSERT_EQ(stand.aborts_.size(), 1u);
+  // The abort request, handed out before the reset, is answered after it.
+  ControllerRequest old_request;
+  old_request.reason = stand.aborts_[0];
+  old_request.run_generation = 0;  // the run before the first reset
+  run.reset("reset requested");
+  run.on_abort_reply(old_request, false, "", stand.now_s_ + 1.0);
+  EXPECT_EQ(run.state(), RunState::Idle);
+  for (const RunAction& a : run.tick(stand.now_s_ + 5.0)) {
+    EXPECT_NE(a.kind, RunAction::Kind::Abort) << "a reset run's abort asked again";
+  }
+  run.on_resume_reply(old_request, true, false, "refused", 0.0, stand.now_s_ + 5.0);
+  EXPECT_EQ(run.state(), RunState::Idle);
+  EXPECT_TRUE(run.status(stand.now_s_).fault.empty());
+}
+
+TEST(CalibrationRun, UndeliveredAbortIsAskedAgain) {
+  FakeStand stand;
+  const auto bad = stand.dwell_interval(Phase::X, 2);
+  stand.inject_first_pass(
+      [&](const ImuSample& s) { return s.stamp_s >= bad.first + 0.2 && s.stamp_s < bad.second; });
+  RunOptions o = options_for(4);
+  o.min_samples_per_dwell = 20;
+  CalibrationRun run(o);
+  stand.play(&run, bad.second + 0.5);
+  ASSERT_EQ(stand.aborts_.size(), 1u);
+  ControllerRequest r;
+  r.reason = stand.aborts_[0];
+  // The stand delivered it; say it did not: asked again after request_retry_s, not before.
+  for (const RunAction& a : run.tick(stand.now_s_)) EXPECT_NE(a.kind, RunAction::Kind::Abort);
+  r.run_generation = 0;
+  run.on_abort_reply(r, false, "", stand.now_s_);
+  int again = 0;
+  for (const RunAction& a : run.tick(stand.now_s_ + 0.1)) again += a.kind == RunAction::Kind::Abort;
+  EXPECT_EQ(again, 0);
+  for (const RunAction& a : run.tick(stand.now_s_ + 0.6)) again += a.kind == RunAction::Kind::Abort;
+  EXPECT_EQ(again, 1);
+}
+
 TEST(CalibrationRun, MalformedCommandsAreCountedAndDropsWarned) {
   CalibrationRun run(options_for(4));
   run.note_rejected_command();

@@ -71,6 +71,7 @@ struct ControllerRequest {
   int approach = +1;   // direction the position is approached from (-1: return sweep)
   bool after = false;  // continue at the position after (phase, step, approach)
   std::string reason;
+  std::uint64_t run_generation = 0;  // replies to a request of a reset run are ignored
 };
 
 struct RunAction {
@@ -95,6 +96,7 @@ struct RunAction {
   PositionTable table;
   std::vector<GimbalEvent> move_commands;
   std::vector<ImuSample> move_samples;
+  AssemblerCounters counters;  // of the run at the fit (the result's "samples" block)
   std::uint64_t fit_ticket = 0;
 };
 using RunActions = std::vector<RunAction>;
@@ -232,6 +234,7 @@ class CalibrationRun {
   std::uint64_t superseded_fit_ticket_ = 0;    // final fit of a run a new run replaced
   bool unreached_warned_ = false;              // "controller not available" said once
   std::uint64_t commands_in_run_ = 0;
+  std::uint64_t run_generation_ = 0;           // bumped by reset()
   bool have_result_ = false;
   std::string fit_error_;
   bool restored_ = false;

@@ -84,9 +84,12 @@ class CalibrationNode {
   void call_controller(const core::RunAction& request);
   // Fit of a FitNow: a report to publish, or the fit's error. Under the lock.
   void finish_fit(std::uint64_t ticket, const core::CalibrationReport* report,
-                  const std::string& error, const ros::Time& stamp);
+                  const core::AssemblerCounters& counters, const std::string& error,
+                  const ros::Time& stamp);
   // The certificate and the analysis out: message, topics, files. Under the lock.
-  void publish_report(const core::CalibrationReport& report, const ros::Time& stamp);
+  // `counters`: the run's sample counters when it was handed to the fit.
+  void publish_certificate(const core::CalibrationReport& report,
+                           const core::AssemblerCounters& counters, const ros::Time& stamp);
   // Returns the one-line summary (logged, and the analyze service's answer).
   std::string publish_analysis(const core::CalibrationReport& report, const ros::Time& stamp);
   void publish_status(const ros::Time& now);
@@ -99,6 +102,7 @@ class CalibrationNode {
     std::uint64_t ticket = 0;
     core::PositionTable table;
     core::RawStreams moves;
+    core::AssemblerCounters counters;
     ros::Time stamp;
   };
   void fit_loop();
@@ -118,7 +122,9 @@ class CalibrationNode {
   std::unique_ptr<diagnostic_updater::Updater> updater_;
 
   IntrinsicResult result_;                   // the latest certificate
-  std::uint64_t resets_ = 0;                 // a reset discards analyses started before it
+  std::uint64_t resets_ = 0;          // a reset discards analyses started before it
+  std::uint64_t fits_published_ = 0;  // ... and so does a newer fit
+  bool shutting_down_ = false;        // the destructor runs: fits are discarded
   ros::Time last_status_;
   core::RunState last_state_ = core::RunState::Idle;
   // IMU rate for the diagnostics.
