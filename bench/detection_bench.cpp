@@ -38,10 +38,10 @@ SimulationOptions bench_simulation() {
   SimulationOptions so;
   Eigen::Matrix3d M;
   M << 1.021, 0.004, -0.007, -0.006, 0.987, 0.011, 0.003, -0.009, 1.008;
-  const Eigen::Matrix3d R =
-      (Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitY()) *
-       Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitX()))
-          .toRotationMatrix();
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()) *
+                             Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitX()))
+                                .toRotationMatrix();
   so.truth.S = M * R;
   so.truth.O = Eigen::Vector3d(0.05, -0.12, 0.08);
   so.noise_density = 300e-6 * kStandardGravity;
@@ -50,10 +50,10 @@ SimulationOptions bench_simulation() {
 }
 
 struct Theory {
-  double sigma_c = 0;        // linearized standard uncertainty of the candidate
-  double critical_fw = 0;    // family-wise critical chi2 of the analysis
-  double value_fw = 0;       // theoretical 90 % threshold at the family-wise level
-  double value_single = 0;   // theoretical 90 % threshold of a single 5 % test
+  double sigma_c = 0;       // linearized standard uncertainty of the candidate
+  double critical_fw = 0;   // family-wise critical chi2 of the analysis
+  double value_fw = 0;      // theoretical 90 % threshold at the family-wise level
+  double value_single = 0;  // theoretical 90 % threshold of a single 5 % test
 };
 
 Theory theory_for(const SimulationOptions& base, const Effect& e) {
@@ -74,7 +74,8 @@ Theory theory_for(const SimulationOptions& base, const Effect& e) {
   return t;
 }
 
-double named_rate(const SimulationOptions& base, Effect e, double value, int runs, std::uint64_t seed0) {
+double named_rate(const SimulationOptions& base, Effect e, double value, int runs,
+                  std::uint64_t seed0) {
   int named = 0;
   for (int r = 0; r < runs; ++r) {
     SimulationOptions so = base;
@@ -92,7 +93,9 @@ double named_rate(const SimulationOptions& base, Effect e, double value, int run
   return static_cast<double>(named) / runs;
 }
 
-std::string key_of(const Effect& e) { return e.name() + "_" + e.target_name(); }
+std::string key_of(const Effect& e) {
+  return e.name() + "_" + e.target_name();
+}
 
 void bench_effect(const SimulationOptions& base, const Effect& e, int runs) {
   const Theory t = theory_for(base, e);
@@ -111,7 +114,9 @@ void bench_effect(const SimulationOptions& base, const Effect& e, int runs) {
     std::cout << key << "_named_rate_at_" << m << "x_familywise_threshold: " << rate << " 1\n";
     if (std::isnan(empirical) && rate >= 0.9) {
       // Linear interpolation of the rate between the two bracketing amplitudes.
-      const double f = previous_rate < 0.9 && rate > previous_rate ? (0.9 - previous_rate) / (rate - previous_rate) : 1.0;
+      const double f = previous_rate < 0.9 && rate > previous_rate
+                           ? (0.9 - previous_rate) / (rate - previous_rate)
+                           : 1.0;
       empirical = (previous_m + f * (m - previous_m)) * t.value_fw;
       if (previous_m == 0.0) empirical = m * t.value_fw;  // already >= 90 % at the first amplitude
     }
@@ -140,7 +145,8 @@ int write_example(const std::string& dir) {
   for (const Effect& e : so.truth.effects) std::cout << e.label() << " = " << e.value << "  ";
   std::cout << "\n";
   accel_intrinsics::io::write_analysis_report(std::cout, a);
-  std::cout << "wrote " << dir << "/example_table.csv, example_analysis.json, example_residuals.csv\n";
+  std::cout << "wrote " << dir
+            << "/example_table.csv, example_analysis.json, example_residuals.csv\n";
   return 0;
 }
 
@@ -170,7 +176,8 @@ int main(int argc, char** argv) {
   std::cout << "runs_per_amplitude: " << runs << " 1\n";
   bench_effect(base, Effect{EffectKind::QuadraticNonlinearity, 0, 0.0}, runs);
   bench_effect(base, Effect{EffectKind::AngleOffset, 0, 0.0}, runs);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::cout << "wall_time: " << seconds << " s\n";
   return 0;
 }

@@ -1,11 +1,11 @@
 // libFuzzer target for bag input (src/ros/bag_format.cpp, bag_topics.cpp, bag_input.cpp):
-// arbitrary bytes, written to a temporary file, go through read_bag() twice: once with the memory-mapped chunk scan allowed (so the
-// scanner's index parse, its "does this bag qualify" decision and, when it does not, the fallback
-// to rosbag::Bag/View all run) and once forced through rosbag. The contract: either a result or a
-// BagInputError with a one-line, non-empty message. Any other exception, a crash, a sanitizer
-// report or a hang (libFuzzer -timeout) is a finding. Built and run by tools/fuzz.sh; crashing
-// inputs go, minimized, into fuzz/corpus/bag_input/, which test/ros_unit/bag_fuzz_regression_test
-// replays.
+// arbitrary bytes, written to a temporary file, go through read_bag() twice: once with the
+// memory-mapped chunk scan allowed (so the scanner's index parse, its "does this bag qualify"
+// decision and, when it does not, the fallback to rosbag::Bag/View all run) and once forced through
+// rosbag. The contract: either a result or a BagInputError with a one-line, non-empty message. Any
+// other exception, a crash, a sanitizer report or a hang (libFuzzer -timeout) is a finding. Built
+// and run by tools/fuzz.sh; crashing inputs go, minimized, into fuzz/corpus/bag_input/, which
+// test/ros_unit/bag_fuzz_regression_test replays.
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -65,14 +65,16 @@ void read_once(bool allow_chunk_scan) {
     const ai::BagRun run = ai::read_bag(input_path(), options);
     check_result(run);
     if (kVerbose) {
-      std::fprintf(stderr, "[%s] %s: %zu dwells, %llu IMU, %llu commands\n", allow_chunk_scan ? "scan allowed" : "rosbag",
-                   run.stats.reader.c_str(), run.table.rows.size(),
-                   static_cast<unsigned long long>(run.stats.imu_messages),
+      std::fprintf(stderr, "[%s] %s: %zu dwells, %llu IMU, %llu commands\n",
+                   allow_chunk_scan ? "scan allowed" : "rosbag", run.stats.reader.c_str(),
+                   run.table.rows.size(), static_cast<unsigned long long>(run.stats.imu_messages),
                    static_cast<unsigned long long>(run.stats.command_messages));
     }
   } catch (const ai::BagInputError& e) {
     const std::string message = e.what();
-    if (kVerbose) std::fprintf(stderr, "[%s] error: %s\n", allow_chunk_scan ? "scan allowed" : "rosbag", e.what());
+    if (kVerbose)
+      std::fprintf(stderr, "[%s] error: %s\n", allow_chunk_scan ? "scan allowed" : "rosbag",
+                   e.what());
     if (message.empty() || message.find('\n') != std::string::npos) {
       std::fprintf(stderr, "bad error message: '%s'\n", message.c_str());
       std::abort();

@@ -115,8 +115,7 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
     if (run_start) {
       resume_pending_ = false;
       log(RunAction::Level::Warn, "a new run starts; the checkpoint of " +
-                                      std::to_string(table_.rows.size()) +
-                                      " dwells is discarded");
+                                      std::to_string(table_.rows.size()) + " dwells is discarded");
       for (RunAction& a : reset("a new run starts over the checkpoint")) {
         actions_.push_back(std::move(a));
       }
@@ -452,8 +451,8 @@ void CalibrationRun::accept_row(const DwellRecord& row) {
   s.precision(5);
   s << "dwell " << label
     << (is_closing_step(row.step, steps_seen_) ? " (closing position, 360 deg)" : "")
-    << ": n = " << row.n << ", mean (" << row.mean(0) << ", " << row.mean(1) << ", "
-    << row.mean(2) << ") m/s^2";
+    << ": n = " << row.n << ", mean (" << row.mean(0) << ", " << row.mean(1) << ", " << row.mean(2)
+    << ") m/s^2";
   a.text = s.str();
   actions_.push_back(std::move(a));
 }
@@ -536,10 +535,9 @@ void CalibrationRun::begin_resume(const std::string& cause) {
     request_.approach = dwell_geometries(table_).back().approach;
     request_.after = true;
     request_.reason = cause;
-    log(RunAction::Level::Warn, cause + ": resuming after " +
-                                    position_label(last.phase, last.step, request_.approach) +
-                                    " (" + std::to_string(table_.rows.size()) +
-                                    " dwells recorded)");
+    log(RunAction::Level::Warn,
+        cause + ": resuming after " + position_label(last.phase, last.step, request_.approach) +
+            " (" + std::to_string(table_.rows.size()) + " dwells recorded)");
   } else {
     request_.reason = cause + ", no dwell recorded";
     log(RunAction::Level::Warn, cause + ": resuming from the first position (no dwell recorded)");
@@ -572,9 +570,9 @@ void CalibrationRun::check_watchdogs(double now_s) {
       const int approach = approach_of_next_row(a.phase, a.step);
       const Announced copy = a;
       announced_.clear();
-      raise_fault("dwell " + position_label(copy.phase, copy.step, approach) +
-                      " has no samples at all",
-                  copy.phase, copy.step, approach, copy.begin_s);
+      raise_fault(
+          "dwell " + position_label(copy.phase, copy.step, approach) + " has no samples at all",
+          copy.phase, copy.step, approach, copy.begin_s);
       return;
     }
   }
@@ -609,27 +607,26 @@ void CalibrationRun::check_watchdogs(double now_s) {
 void CalibrationRun::warn_on_new_drops() {
   const AssemblerCounters& c = assembler_.counters();
   if (c.dropped_non_finite > warned_.dropped_non_finite) {
-    log_repeating( "dropped IMU samples with NaN or infinite values (" +
-                                    std::to_string(c.dropped_non_finite) + " so far)");
+    log_repeating("dropped IMU samples with NaN or infinite values (" +
+                  std::to_string(c.dropped_non_finite) + " so far)");
   }
   if (c.dropped_backwards > warned_.dropped_backwards) {
-    log_repeating( "dropped IMU samples whose stamp went backwards (" +
-                                    std::to_string(c.dropped_backwards) + " so far)");
+    log_repeating("dropped IMU samples whose stamp went backwards (" +
+                  std::to_string(c.dropped_backwards) + " so far)");
   }
   if (c.dropped_late > warned_.dropped_late) {
-    log_repeating( "dropped messages that arrived after the reorder window (" +
-                                    std::to_string(c.dropped_late) +
-                                    " so far; raise reorder_window_s?)");
+    log_repeating("dropped messages that arrived after the reorder window (" +
+                  std::to_string(c.dropped_late) + " so far; raise reorder_window_s?)");
   }
   if (c.commands_out_of_order > warned_.commands_out_of_order) {
-    log_repeating( "gimbal command out of protocol order (" +
-                                    std::to_string(c.commands_out_of_order) +
-                                    " so far): " + c.last_warning);
+    log_repeating("gimbal command out of protocol order (" +
+                  std::to_string(c.commands_out_of_order) + " so far): " + c.last_warning);
   }
   warned_ = c;
 }
 
-// ---- Views ---------------------------------------------------------------------------------------
+// ---- Views
+// ---------------------------------------------------------------------------------------
 
 RunState CalibrationRun::state() const {
   if (have_result_) return RunState::Done;
@@ -656,9 +653,9 @@ RunStatus CalibrationRun::status(double now_s) const {
   s.dwells_discarded = rows_discarded_;
   s.restored = restored_;
   s.in_dwell = assembler_.current_dwell(&s.dwell_phase, &s.dwell_step, &s.dwell_samples);
-  s.imu_silent = options_.imu_timeout_s > 0.0 && live_in_dwell_ &&
-                 now_s - std::max(live_dwell_.stamp_s, newest_sample_stamp_s_) >
-                     options_.imu_timeout_s;
+  s.imu_silent =
+      options_.imu_timeout_s > 0.0 && live_in_dwell_ &&
+      now_s - std::max(live_dwell_.stamp_s, newest_sample_stamp_s_) > options_.imu_timeout_s;
   s.newest_sample_stamp_s = newest_sample_stamp_s_;
   return s;
 }

@@ -2,8 +2,6 @@
 
 #include <ceres/jet.h>
 
-#include "accel_intrinsics/core/simulator.h"
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <boost/math/distributions/chi_squared.hpp>
@@ -17,12 +15,16 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "accel_intrinsics/core/simulator.h"
+
 namespace accel_intrinsics {
 namespace core {
 
 namespace {
 
-bool same_term(const Effect& a, const Effect& b) { return a.kind == b.kind && a.target == b.target; }
+bool same_term(const Effect& a, const Effect& b) {
+  return a.kind == b.kind && a.target == b.target;
+}
 
 bool contains_term(const std::vector<Effect>& list, const Effect& e) {
   return std::any_of(list.begin(), list.end(), [&](const Effect& x) { return same_term(x, e); });
@@ -109,7 +111,8 @@ Eigen::VectorXd normalized_residuals(const std::vector<Eigen::Vector3d>& residua
                                      const std::vector<Eigen::Vector3d>& se) {
   Eigen::VectorXd z(3 * static_cast<Eigen::Index>(residuals.size()));
   for (std::size_t r = 0; r < residuals.size(); ++r) {
-    for (int s = 0; s < 3; ++s) z(3 * static_cast<Eigen::Index>(r) + s) = residuals[r](s) / se[r](s);
+    for (int s = 0; s < 3; ++s)
+      z(3 * static_cast<Eigen::Index>(r) + s) = residuals[r](s) / se[r](s);
   }
   return z;
 }
@@ -139,7 +142,8 @@ struct Screening {
 
 Screening screen(const PositionTable& table, const std::vector<DwellGeometry>& geoms,
                  const FitResult& fit, const std::vector<Effect>& model_terms,
-                 const std::vector<Effect>& candidates, const AnalysisOptions& options, int step_number) {
+                 const std::vector<Effect>& candidates, const AnalysisOptions& options,
+                 int step_number) {
   const double g = options.local_gravity;
   const std::vector<Eigen::Vector3d> se = weights_for(table, fit);
   Device device = device_from_fit(fit);
@@ -175,7 +179,8 @@ Screening screen(const PositionTable& table, const std::vector<DwellGeometry>& g
     const double bb = b.squaredNorm();
     const double pp = b_perp.squaredNorm();
     cs.information_ratio = bb > 0.0 ? pp / bb : 0.0;
-    cs.identifiable = bb > 0.0 && std::isfinite(pp) && cs.information_ratio >= options.identifiability_floor;
+    cs.identifiable =
+        bb > 0.0 && std::isfinite(pp) && cs.information_ratio >= options.identifiability_floor;
     if (cs.identifiable) {
       const double dot = b_perp.dot(z);
       cs.score_chi2 = dot * dot / pp;
@@ -199,7 +204,8 @@ Screening screen(const PositionTable& table, const std::vector<DwellGeometry>& g
   for (std::size_t k = 0; k < order.size(); ++k) {
     out.step.candidates.push_back(scores[order[k]]);
     out.directions.push_back(dirs[order[k]]);
-    out.identifiable_index.push_back(scores[order[k]].identifiable ? static_cast<int>(ident.size()) : -1);
+    out.identifiable_index.push_back(scores[order[k]].identifiable ? static_cast<int>(ident.size())
+                                                                   : -1);
     if (scores[order[k]].identifiable) ident.push_back(static_cast<int>(k));
   }
   const int m = static_cast<int>(ident.size());
@@ -253,10 +259,11 @@ Screening screen(const PositionTable& table, const std::vector<DwellGeometry>& g
     // conservative) gives the finer figure.
     cs.p_adjusted = exceed[k] == 0 ? std::min(running, cs.p_holm) : running;
   }
-  const std::size_t q = std::min<std::size_t>(
-      first_stage_max.size() - 1,
-      static_cast<std::size_t>(std::ceil((1.0 - options.alpha) * draws)) - 1);
-  std::nth_element(first_stage_max.begin(), first_stage_max.begin() + static_cast<long>(q), first_stage_max.end());
+  const std::size_t q =
+      std::min<std::size_t>(first_stage_max.size() - 1,
+                            static_cast<std::size_t>(std::ceil((1.0 - options.alpha) * draws)) - 1);
+  std::nth_element(first_stage_max.begin(), first_stage_max.begin() + static_cast<long>(q),
+                   first_stage_max.end());
   out.step.critical_chi2 = first_stage_max[q];
   const double lambda90 = noncentrality_for_power(out.step.critical_chi2, options.detection_power);
   for (int k = 0; k < m; ++k) {
@@ -274,7 +281,8 @@ double ambiguity_threshold_corr(const Screening& s, int a_row, int b_row) {
 
 void validate(const AnalysisOptions& options) {
   auto fail = [](const std::string& m) { throw std::invalid_argument("analysis: " + m); };
-  if (!std::isfinite(options.local_gravity) || options.local_gravity <= 0.0) fail("local_gravity must be positive");
+  if (!std::isfinite(options.local_gravity) || options.local_gravity <= 0.0)
+    fail("local_gravity must be positive");
   if (!(options.alpha > 0.0 && options.alpha < 1.0)) fail("alpha must be in (0, 1)");
   if (options.max_effects < 0) fail("max_effects must be >= 0");
   if (options.monte_carlo_draws < 100) fail("monte_carlo_draws must be >= 100");
@@ -287,7 +295,8 @@ void validate(const AnalysisOptions& options) {
   if (options.refit_top < 1) fail("refit_top must be >= 1");
   if (options.harmonics < 0 || options.harmonics > 32) fail("harmonics must be in [0, 32]");
   if (options.time_bins < 1) fail("time_bins must be >= 1");
-  if (!(options.detection_power > 0.0 && options.detection_power < 1.0)) fail("detection_power must be in (0, 1)");
+  if (!(options.detection_power > 0.0 && options.detection_power < 1.0))
+    fail("detection_power must be in (0, 1)");
 }
 
 std::vector<Effect> default_candidates(const PositionTable& table) {
@@ -323,7 +332,8 @@ std::vector<Eigen::Vector3d> twin_residuals(const PositionTable& table, const De
 Gap compute_gap(const PositionTable& table, const FitResult& fit, int harmonics, int time_bins) {
   const std::vector<DwellGeometry> geoms = dwell_geometries(table);
   const std::vector<Eigen::Vector3d> se = weights_for(table, fit);
-  const std::vector<Eigen::Vector3d> res = twin_residuals(table, device_from_fit(fit), fit.local_gravity);
+  const std::vector<Eigen::Vector3d> res =
+      twin_residuals(table, device_from_fit(fit), fit.local_gravity);
   Gap gap;
   double chi2 = 0.0, sum_sq = 0.0;
   for (std::size_t r = 0; r < res.size(); ++r) {
@@ -415,7 +425,8 @@ Gap compute_gap(const PositionTable& table, const FitResult& fit, int harmonics,
       }
     }
     for (int b = 0; b < bins; ++b) {
-      gap.time_bins[b].rms = gap.time_bins[b].n > 0 ? std::sqrt(bin_sq[b] / gap.time_bins[b].n) : 0.0;
+      gap.time_bins[b].rms =
+          gap.time_bins[b].n > 0 ? std::sqrt(bin_sq[b] / gap.time_bins[b].n) : 0.0;
     }
     for (int s = 0; s < 3; ++s) gap.trend_z[s] = stt > 0.0 ? stz[s] / std::sqrt(stt) : 0.0;
   }
@@ -424,7 +435,8 @@ Gap compute_gap(const PositionTable& table, const FitResult& fit, int harmonics,
 
 double noncentrality_for_power(double critical_chi2, double power) {
   if (!(critical_chi2 > 0.0) || !(power > 0.0 && power < 1.0)) {
-    throw std::invalid_argument("noncentrality_for_power: need critical_chi2 > 0 and power in (0, 1)");
+    throw std::invalid_argument(
+        "noncentrality_for_power: need critical_chi2 > 0 and power in (0, 1)");
   }
   auto power_at = [&](double lambda) {
     if (lambda <= 0.0) return chi2_sf(critical_chi2, 1.0);
@@ -449,7 +461,8 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
   const std::array<bool, 3> two_way = two_way_phases(geoms);
 
   // Candidate family.
-  std::vector<Effect> candidates = options.candidates.empty() ? default_candidates(table) : options.candidates;
+  std::vector<Effect> candidates =
+      options.candidates.empty() ? default_candidates(table) : options.candidates;
   {
     std::vector<Effect> kept;
     for (const Effect& c : candidates) {
@@ -469,12 +482,15 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
   for (const EffectInfo& info : effect_catalog()) {
     for (int target : effect_targets(info.kind)) {
       const Effect effect{info.kind, target, 0.0};
-      if (!screenable(effect, two_way)) result.not_screened.push_back(effect.label() + ": " + unmet_precondition_note(effect));
+      if (!screenable(effect, two_way))
+        result.not_screened.push_back(effect.label() + ": " + unmet_precondition_note(effect));
     }
   }
   std::ostringstream gnote;
-  gnote << std::setprecision(8) << "local_gravity: a wrong g scales all three responsivities together and "
-        << "leaves no residual; an independent g (gravimeter, or normal_gravity(latitude, height)) is the "
+  gnote << std::setprecision(8)
+        << "local_gravity: a wrong g scales all three responsivities together and "
+        << "leaves no residual; an independent g (gravimeter, or normal_gravity(latitude, height)) "
+           "is the "
         << "only cure. This analysis used g = " << options.local_gravity << " m/s^2";
   result.unobservable.push_back(gnote.str());
 
@@ -514,7 +530,8 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
     std::vector<int> significant;
     for (std::size_t k = 0; k < sc.step.candidates.size(); ++k) {
       const CandidateScore& cs = sc.step.candidates[k];
-      if (cs.identifiable && cs.p_adjusted <= options.alpha) significant.push_back(static_cast<int>(k));
+      if (cs.identifiable && cs.p_adjusted <= options.alpha)
+        significant.push_back(static_cast<int>(k));
     }
     if (significant.empty()) {
       bool any = std::any_of(sc.step.candidates.begin(), sc.step.candidates.end(),
@@ -528,7 +545,8 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
     int best = -1;
     double best_delta = -std::numeric_limits<double>::infinity();
     FitResult best_fit;
-    for (int i = 0; i < std::min<int>(options.refit_top, static_cast<int>(significant.size())); ++i) {
+    for (int i = 0; i < std::min<int>(options.refit_top, static_cast<int>(significant.size()));
+         ++i) {
       CandidateScore& cs = sc.step.candidates[significant[i]];
       FitOptions o = fo;
       o.effects = model_terms;
@@ -585,7 +603,8 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
         amb.candidates.push_back(sc.step.candidates[k].effect.label());
         if (corr > amb.correlation) {
           amb.correlation = corr;
-          amb.separating_experiment = separating_experiment(chosen.effect, sc.step.candidates[k].effect);
+          amb.separating_experiment =
+              separating_experiment(chosen.effect, sc.step.candidates[k].effect);
         }
       }
     }

@@ -36,13 +36,15 @@ Eigen::Vector3d DwellAccumulator::sample_std() const {
 
 // ---- CSV ---------------------------------------------------------------------------------------
 
-const char* const kPositionTableHeader = "phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w";
+const char* const kPositionTableHeader =
+    "phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w";
 
 namespace {
 
 constexpr int kColumns = 12;
-const char* const kColumnNames[kColumns] = {"phase",  "step",   "angle_rad", "t_start", "t_end", "n",
-                                            "mean_u", "mean_v", "mean_w",    "std_u",   "std_v", "std_w"};
+const char* const kColumnNames[kColumns] = {"phase",  "step",  "angle_rad", "t_start",
+                                            "t_end",  "n",     "mean_u",    "mean_v",
+                                            "mean_w", "std_u", "std_v",     "std_w"};
 
 std::string trim(const std::string& s) {
   const auto begin = s.find_first_not_of(" \t\r\n");
@@ -55,7 +57,8 @@ std::string trim(const std::string& s) {
   throw PositionTableError(source + " line " + std::to_string(line) + ": " + what);
 }
 
-double parse_double(const std::string& field, const std::string& source, std::size_t line, int column) {
+double parse_double(const std::string& field, const std::string& source, std::size_t line,
+                    int column) {
   const std::string text = trim(field);
   char* end = nullptr;
   errno = 0;
@@ -63,21 +66,26 @@ double parse_double(const std::string& field, const std::string& source, std::si
   // ERANGE alone is not an error: an underflow to a denormal or zero is still a number, and an
   // overflow comes back as infinity, which the finiteness check below rejects.
   if (text.empty() || end != text.c_str() + text.size()) {
-    fail(source, line, std::string("field ") + kColumnNames[column] + " is not a number: '" + text + "'");
+    fail(source, line,
+         std::string("field ") + kColumnNames[column] + " is not a number: '" + text + "'");
   }
-  if (!std::isfinite(value)) fail(source, line, std::string("field ") + kColumnNames[column] + " is not finite");
+  if (!std::isfinite(value))
+    fail(source, line, std::string("field ") + kColumnNames[column] + " is not finite");
   return value;
 }
 
-std::uint64_t parse_count(const std::string& field, const std::string& source, std::size_t line, int column) {
+std::uint64_t parse_count(const std::string& field, const std::string& source, std::size_t line,
+                          int column) {
   const std::string text = trim(field);
   if (text.empty() || text.find_first_not_of("0123456789") != std::string::npos) {
     fail(source, line,
-         std::string("field ") + kColumnNames[column] + " must be a non-negative integer, got '" + text + "'");
+         std::string("field ") + kColumnNames[column] + " must be a non-negative integer, got '" +
+             text + "'");
   }
   errno = 0;
   const unsigned long long value = std::strtoull(text.c_str(), nullptr, 10);
-  if (errno == ERANGE) fail(source, line, std::string("field ") + kColumnNames[column] + " is too large");
+  if (errno == ERANGE)
+    fail(source, line, std::string("field ") + kColumnNames[column] + " is too large");
   return value;
 }
 
@@ -105,7 +113,8 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
     if (text.empty() || text[0] == '#') continue;
     if (!have_header) {
       if (text != kPositionTableHeader) {
-        fail(source_name, line_number, std::string("expected the header '") + kPositionTableHeader + "'");
+        fail(source_name, line_number,
+             std::string("expected the header '") + kPositionTableHeader + "'");
       }
       have_header = true;
       continue;
@@ -113,29 +122,39 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
     const std::vector<std::string> fields = split(text);
     if (static_cast<int>(fields.size()) != kColumns) {
       fail(source_name, line_number,
-           "expected " + std::to_string(kColumns) + " fields, found " + std::to_string(fields.size()));
+           "expected " + std::to_string(kColumns) + " fields, found " +
+               std::to_string(fields.size()));
     }
     DwellRecord row;
     if (!parse_phase(trim(fields[0]), &row.phase)) {
-      fail(source_name, line_number, "field phase must be x, y or z, got '" + trim(fields[0]) + "'");
+      fail(source_name, line_number,
+           "field phase must be x, y or z, got '" + trim(fields[0]) + "'");
     }
     const std::uint64_t step = parse_count(fields[1], source_name, line_number, 1);
-    if (step > std::numeric_limits<std::uint32_t>::max()) fail(source_name, line_number, "field step is too large");
+    if (step > std::numeric_limits<std::uint32_t>::max())
+      fail(source_name, line_number, "field step is too large");
     row.step = static_cast<std::uint32_t>(step);
     row.angle_rad = parse_double(fields[2], source_name, line_number, 2);
     row.t_start_s = parse_double(fields[3], source_name, line_number, 3);
     row.t_end_s = parse_double(fields[4], source_name, line_number, 4);
-    if (row.t_end_s < row.t_start_s) fail(source_name, line_number, "field t_end is before t_start");
+    if (row.t_end_s < row.t_start_s)
+      fail(source_name, line_number, "field t_end is before t_start");
     row.n = parse_count(fields[5], source_name, line_number, 5);
-    if (row.n == 0) fail(source_name, line_number, "field n is 0: a dwell without samples has no mean");
-    for (int k = 0; k < 3; ++k) row.mean(k) = parse_double(fields[6 + k], source_name, line_number, 6 + k);
+    if (row.n == 0)
+      fail(source_name, line_number, "field n is 0: a dwell without samples has no mean");
+    for (int k = 0; k < 3; ++k)
+      row.mean(k) = parse_double(fields[6 + k], source_name, line_number, 6 + k);
     for (int k = 0; k < 3; ++k) {
       row.std(k) = parse_double(fields[9 + k], source_name, line_number, 9 + k);
-      if (row.std(k) < 0.0) fail(source_name, line_number, std::string("field ") + kColumnNames[9 + k] + " is negative");
+      if (row.std(k) < 0.0)
+        fail(source_name, line_number,
+             std::string("field ") + kColumnNames[9 + k] + " is negative");
     }
     table.rows.push_back(row);
   }
-  if (!have_header) throw PositionTableError(source_name + ": empty, expected the header '" + kPositionTableHeader + "'");
+  if (!have_header)
+    throw PositionTableError(source_name + ": empty, expected the header '" + kPositionTableHeader +
+                             "'");
   return table;
 }
 
@@ -147,8 +166,8 @@ PositionTable read_position_table_file(const std::string& path) {
 
 void write_position_row(std::ostream& out, const DwellRecord& row) {
   const auto precision = out.precision(std::numeric_limits<double>::max_digits10);
-  out << phase_name(row.phase) << ',' << row.step << ',' << row.angle_rad << ',' << row.t_start_s << ','
-      << row.t_end_s << ',' << row.n;
+  out << phase_name(row.phase) << ',' << row.step << ',' << row.angle_rad << ',' << row.t_start_s
+      << ',' << row.t_end_s << ',' << row.n;
   for (int k = 0; k < 3; ++k) out << ',' << row.mean(k);
   for (int k = 0; k < 3; ++k) out << ',' << row.std(k);
   out << '\n';

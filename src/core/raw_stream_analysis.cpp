@@ -20,14 +20,19 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // P(chi2(1) >= x).
-double chi2_1_sf(double x) { return x > 0.0 ? std::erfc(std::sqrt(0.5 * x)) : 1.0; }
+double chi2_1_sf(double x) {
+  return x > 0.0 ? std::erfc(std::sqrt(0.5 * x)) : 1.0;
+}
 
 // Standard normal upper quantile by bisection on erfc (no dependency, 1e-12 accurate).
 double normal_upper_quantile(double p) {
   double lo = -40.0, hi = 40.0;
   for (int i = 0; i < 200; ++i) {
     const double mid = 0.5 * (lo + hi);
-    if (0.5 * std::erfc(mid / std::sqrt(2.0)) > p) lo = mid; else hi = mid;
+    if (0.5 * std::erfc(mid / std::sqrt(2.0)) > p)
+      lo = mid;
+    else
+      hi = mid;
   }
   return 0.5 * (lo + hi);
 }
@@ -42,7 +47,10 @@ double detectable_shift(double alpha, double power) {
   double lo = 0.0, hi = 50.0;
   for (int i = 0; i < 200; ++i) {
     const double mid = 0.5 * (lo + hi);
-    if (rejection(mid) < power) lo = mid; else hi = mid;
+    if (rejection(mid) < power)
+      lo = mid;
+    else
+      hi = mid;
   }
   return 0.5 * (lo + hi);
 }
@@ -55,7 +63,9 @@ struct MoveWindow {
 
 }  // namespace
 
-Effect TimingLagEstimate::effect() const { return Effect{EffectKind::TimingLag, 0, lag_s}; }
+Effect TimingLagEstimate::effect() const {
+  return Effect{EffectKind::TimingLag, 0, lag_s};
+}
 
 double first_command_stamp(const std::vector<GimbalEvent>& commands) {
   double first = kInf;
@@ -73,7 +83,8 @@ std::vector<ScheduledPosition> schedule_from_commands(const std::vector<GimbalEv
                                                       double time_origin_s) {
   std::vector<ScheduledPosition> schedule;
   if (commands.empty()) return schedule;
-  const double origin = std::isfinite(time_origin_s) ? time_origin_s : first_command_stamp(commands);
+  const double origin =
+      std::isfinite(time_origin_s) ? time_origin_s : first_command_stamp(commands);
   if (!std::isfinite(origin)) return schedule;
 
   std::vector<std::size_t> order(commands.size());
@@ -157,7 +168,8 @@ TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
   const double origin = (table.rows.empty() && !std::isfinite(table.time_origin_s))
                             ? kNaN
                             : effective_time_origin(table);
-  return estimate_timing_lag(commands, samples, base_fit, origin, pooled_sample_std(table), options);
+  return estimate_timing_lag(commands, samples, base_fit, origin, pooled_sample_std(table),
+                             options);
 }
 
 TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
@@ -184,7 +196,8 @@ TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
 
   TimingLagEstimate result;
   result.samples_total = samples.size();
-  const double origin = std::isfinite(time_origin_s) ? time_origin_s : first_command_stamp(commands);
+  const double origin =
+      std::isfinite(time_origin_s) ? time_origin_s : first_command_stamp(commands);
   if (!std::isfinite(origin)) {
     result.message = "timing_lag: no gimbal commands with a finite stamp";
     return result;
@@ -228,8 +241,8 @@ TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
   if (used.size() < options.min_move_samples) {
     std::ostringstream msg;
     msg << "timing_lag: only " << used.size() << " of " << samples.size()
-        << " samples fall inside the " << windows.size()
-        << " moves within a phase (need at least " << options.min_move_samples
+        << " samples fall inside the " << windows.size() << " moves within a phase (need at least "
+        << options.min_move_samples
         << "); a timing lag shows only in samples taken while the gimbal moves, so record the raw "
            "IMU stream including the moves (were the samples outside dwells dropped?)";
     result.message = msg.str();
@@ -299,7 +312,8 @@ TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
 
   const Sums at_zero = evaluate(0.0, true);
   if (!(at_zero.jj > 0.0) || !std::isfinite(at_zero.jj) || !std::isfinite(at_zero.chi2)) {
-    result.message = "timing_lag: the outputs do not change along the moves (no information on the lag)";
+    result.message =
+        "timing_lag: the outputs do not change along the moves (no information on the lag)";
     return result;
   }
 
@@ -339,13 +353,16 @@ TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
   result.reduced_chi2 = current.chi2 / std::max(1.0, n_res - 1.0);
 
   // Noise scale: known sigma (pooled dwell stds), or estimated from the residuals.
-  const double scale2 =
-      result.sigma_from_residuals ? std::max(result.reduced_chi2, std::numeric_limits<double>::min()) : 1.0;
-  result.sample_sigma = result.sigma_from_residuals ? Eigen::Vector3d::Constant(std::sqrt(scale2)) : sigma;
+  const double scale2 = result.sigma_from_residuals
+                            ? std::max(result.reduced_chi2, std::numeric_limits<double>::min())
+                            : 1.0;
+  result.sample_sigma =
+      result.sigma_from_residuals ? Eigen::Vector3d::Constant(std::sqrt(scale2)) : sigma;
 
   // Uncertainty at the estimate: var = (1 + leak) / jj, scaled by the reduced chi-square above 1.
   result.base_fit_leak = leak_of(current) / scale2;
-  const double inflation = result.sigma_from_residuals ? scale2 : std::max(1.0, result.reduced_chi2);
+  const double inflation =
+      result.sigma_from_residuals ? scale2 : std::max(1.0, result.reduced_chi2);
   result.std_s = std::sqrt((1.0 + result.base_fit_leak) / current.jj * inflation);
 
   // Tests of lag = 0, calibrated at lag = 0: the score jr0 has variance jj0 (1 + leak0) there.
@@ -368,8 +385,11 @@ TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
   } else {
     msg << "timing_lag: " << result.lag_s * 1e3 << " +- " << result.std_s * 1e3 << " ms from "
         << result.samples_used << " samples in " << result.moves_used << " moves; LR chi2 "
-        << result.lr_chi2 << ", p = " << result.p_value << (result.detected ? " (detected)" : " (not detected)");
-    if (result.at_bound) msg << "; at the bound +-" << options.max_abs_lag_s << " s (not a minimum: raise max_abs_lag_s?)";
+        << result.lr_chi2 << ", p = " << result.p_value
+        << (result.detected ? " (detected)" : " (not detected)");
+    if (result.at_bound)
+      msg << "; at the bound +-" << options.max_abs_lag_s
+          << " s (not a minimum: raise max_abs_lag_s?)";
     if (!result.converged) msg << "; not converged";
     if (result.sigma_from_residuals) msg << "; noise scale from the move residuals";
   }

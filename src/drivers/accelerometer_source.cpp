@@ -129,6 +129,8 @@ double SimulatedAccelerometer::variance_per_axis() const {
   return noise_std_ * noise_std_ + q * q / 12.0;
 }
 
-void SimulatedAccelerometer::restart() { next_index_ = -1; }
+void SimulatedAccelerometer::restart() {
+  next_index_ = -1;
+}
 
 }  // namespace accel_intrinsics

@@ -25,8 +25,8 @@ void CheckpointFiles::append_row(const core::DwellRecord& row) {
     std::error_code ec;
     const bool has_content = std::filesystem::exists(table_path()) &&
                              std::filesystem::file_size(table_path(), ec) > 0 && !ec;
-    table_.open(table_path(), append_ ? std::ios::out | std::ios::app
-                                      : std::ios::out | std::ios::trunc);
+    table_.open(table_path(),
+                append_ ? std::ios::out | std::ios::app : std::ios::out | std::ios::trunc);
     if (!table_) throw IoError("cannot write '" + table_path() + "'");
     if (!append_ || !has_content) table_ << core::kPositionTableHeader << '\n';
   }

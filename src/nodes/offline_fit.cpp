@@ -47,8 +47,8 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForAllHelp& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    std::cerr << ai::kOfflineFitProgram << ": error: " << ai::as_one_line(e.what()) << " (see --help)"
-              << std::endl;
+    std::cerr << ai::kOfflineFitProgram << ": error: " << ai::as_one_line(e.what())
+              << " (see --help)" << std::endl;
     return ai::kOfflineFitBadCommandLine;
   }
   args.imu_topic_given = imu->count() > 0;

@@ -74,8 +74,8 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
       }
     } catch (const std::exception& e) {
       // A checkpoint that cannot be read is not silently replaced by a fresh run.
-      throw ParamError("parameter " + param_name(pnh_, "resume") + ": cannot read the checkpoint in " +
-                       options_.output_dir + ": " + e.what());
+      throw ParamError("parameter " + param_name(pnh_, "resume") +
+                       ": cannot read the checkpoint in " + options_.output_dir + ": " + e.what());
     }
   }
   result_pub_ = nh_.advertise<IntrinsicResult>(names::kResultTopic, 1, true);
@@ -235,9 +235,7 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
           files_.append_row(a.row);
           ROS_INFO("calibration: %s", a.text.c_str());
           break;
-        case Kind::CheckpointState:
-          files_.write_state(run_.checkpoint_state());
-          break;
+        case Kind::CheckpointState: files_.write_state(run_.checkpoint_state()); break;
         case Kind::ClearCheckpoint: {
           // A new run (or a reset): its files, its result and any fit still running go.
           files_.clear();
@@ -253,13 +251,17 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
             // The analysis takes seconds: off the lock, on the worker.
             {
               std::lock_guard<std::mutex> job_lock(job_mutex_);
-              job_ = FitJob{a.fit_ticket, a.table, {a.move_commands, a.move_samples},
-                            a.counters, ros::Time::now()};
+              job_ = FitJob{a.fit_ticket,
+                            a.table,
+                            {a.move_commands, a.move_samples},
+                            a.counters,
+                            ros::Time::now()};
             }
             job_cv_.notify_one();
-            ROS_INFO("calibration: fitting %zu dwells; the discrepancy analysis runs, the result "
-                     "follows it",
-                     a.table.rows.size());
+            ROS_INFO(
+                "calibration: fitting %zu dwells; the discrepancy analysis runs, the result "
+                "follows it",
+                a.table.rows.size());
           } else {
             const ros::Time now = ros::Time::now();
             try {
@@ -284,8 +286,8 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
 }
 
 void CalibrationNode::finish_fit(std::uint64_t ticket, const core::CalibrationReport* report,
-                                 const core::AssemblerCounters& counters,
-                                 const std::string& error, const ros::Time& stamp) {
+                                 const core::AssemblerCounters& counters, const std::string& error,
+                                 const ros::Time& stamp) {
   const bool publish = report != nullptr && !shutting_down_ && run_.fit_may_publish(ticket);
   if (publish) {
     if (report->analysis || !report->analysis_error.empty()) publish_analysis(*report, stamp);
@@ -307,9 +309,8 @@ void CalibrationNode::publish_certificate(const core::CalibrationReport& report,
       "%.4f wu %.4f deg, reduced chi2 %.3f",
       result_.model.c_str(),
       static_cast<std::size_t>(result_.positions[0] + result_.positions[1] + result_.positions[2]),
-      result_.responsivity[0],
-      result_.responsivity[1], result_.responsivity[2], result_.angles_deg[0],
-      result_.angles_deg[1], result_.angles_deg[2], result_.reduced_chi2);
+      result_.responsivity[0], result_.responsivity[1], result_.responsivity[2],
+      result_.angles_deg[0], result_.angles_deg[1], result_.angles_deg[2], result_.reduced_chi2);
   if (files_.enabled()) {
     io::ResultContext context;
     context.stamp_s = stamp.toSec();
@@ -489,10 +490,10 @@ void CalibrationNode::diagnose_imu(diagnostic_updater::DiagnosticStatusWrapper& 
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   // The sensor's rate in its own time: samples over the span of their stamps since the last
   // report (arrival times jitter with transport and, in simulation, with time_scale).
-  const double rate_hz = rate_count_ > 1 && rate_last_stamp_s_ > rate_first_stamp_s_
-                             ? static_cast<double>(rate_count_ - 1) /
-                                   (rate_last_stamp_s_ - rate_first_stamp_s_)
-                             : 0.0;
+  const double rate_hz =
+      rate_count_ > 1 && rate_last_stamp_s_ > rate_first_stamp_s_
+          ? static_cast<double>(rate_count_ - 1) / (rate_last_stamp_s_ - rate_first_stamp_s_)
+          : 0.0;
   rate_count_ = 0;
   const core::RunStatus st = run_.status(ros::Time::now().toSec());
   const core::AssemblerCounters& c = st.counters;
@@ -534,14 +535,13 @@ void CalibrationNode::diagnose_run(diagnostic_updater::DiagnosticStatusWrapper& 
       status.summary(diagnostic_msgs::DiagnosticStatus::OK,
                      "result available (" + result_.model + ")");
       break;
-    default:
-      status.summary(diagnostic_msgs::DiagnosticStatus::OK, "collecting");
+    default: status.summary(diagnostic_msgs::DiagnosticStatus::OK, "collecting");
   }
   status.add("state", core::run_state_name(st.state));
-  status.add("current_dwell", st.in_dwell ? std::string("phase ") +
-                                                core::phase_name(st.dwell_phase) + " step " +
-                                                std::to_string(st.dwell_step)
-                                          : std::string());
+  status.add("current_dwell", st.in_dwell
+                                  ? std::string("phase ") + core::phase_name(st.dwell_phase) +
+                                        " step " + std::to_string(st.dwell_step)
+                                  : std::string());
   status.add("current_dwell_samples", st.in_dwell ? st.dwell_samples : 0);
   for (core::Phase p : core::kPhases) {
     status.add(std::string("dwells_") + core::phase_name(p), st.dwells_per_phase[core::index(p)]);

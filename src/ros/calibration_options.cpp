@@ -33,7 +33,8 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
     }
   }
   require(
-      std::isfinite(o.calibrate.fit.local_gravity) && o.calibrate.fit.local_gravity > 9.7 && o.calibrate.fit.local_gravity < 9.9,
+      std::isfinite(o.calibrate.fit.local_gravity) && o.calibrate.fit.local_gravity > 9.7 &&
+          o.calibrate.fit.local_gravity < 9.9,
       pnh, "local_gravity",
       "must be in (9.7, 9.9) m/s^2 (got " + std::to_string(o.calibrate.fit.local_gravity) + ")");
   read_param(pnh, "min_positions_per_phase", &o.calibrate.fit.min_positions_per_phase);
@@ -41,11 +42,12 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
           "must be >= 3");
   o.run.min_positions_per_phase = o.calibrate.fit.min_positions_per_phase;
   read_param(pnh, "settle_discard_s", &o.run.assembler.settle_discard_s);
-  require(std::isfinite(o.run.assembler.settle_discard_s) && o.run.assembler.settle_discard_s >= 0.0, pnh,
-          "settle_discard_s", "must be finite and >= 0 s");
+  require(
+      std::isfinite(o.run.assembler.settle_discard_s) && o.run.assembler.settle_discard_s >= 0.0,
+      pnh, "settle_discard_s", "must be finite and >= 0 s");
   read_param(pnh, "reorder_window_s", &o.run.assembler.reorder_window_s);
-  require(std::isfinite(o.run.assembler.reorder_window_s) && o.run.assembler.reorder_window_s >= 0.0 &&
-              o.run.assembler.reorder_window_s <= 60.0,
+  require(std::isfinite(o.run.assembler.reorder_window_s) &&
+              o.run.assembler.reorder_window_s >= 0.0 && o.run.assembler.reorder_window_s <= 60.0,
           pnh, "reorder_window_s", "must be in [0, 60] s");
   read_param(pnh, "flush_period_s", &o.flush_period_s);
   require(std::isfinite(o.flush_period_s) && o.flush_period_s > 0.0 && o.flush_period_s <= 10.0,

@@ -133,18 +133,12 @@ std::unique_ptr<GimbalDriver> make_gimbal_driver(const GimbalControllerOptions& 
 
 const char* GimbalControllerNode::state_name(State state) {
   switch (state) {
-    case State::Idle:
-      return "IDLE";
-    case State::Starting:
-      return "STARTING";
-    case State::Moving:
-      return "MOVING";
-    case State::Dwelling:
-      return "SETTLED";
-    case State::Done:
-      return "DONE";
-    case State::Aborted:
-      return "ABORTED";
+    case State::Idle: return "IDLE";
+    case State::Starting: return "STARTING";
+    case State::Moving: return "MOVING";
+    case State::Dwelling: return "SETTLED";
+    case State::Done: return "DONE";
+    case State::Aborted: return "ABORTED";
   }
   return "?";
 }
@@ -161,8 +155,7 @@ GimbalControllerNode::GimbalControllerNode(ros::NodeHandle nh, ros::NodeHandle p
   abort_srv_ = nh_.advertiseService(names::kAbortService, &GimbalControllerNode::on_abort, this);
   abort_run_srv_ =
       nh_.advertiseService(names::kAbortRunService, &GimbalControllerNode::on_abort_run, this);
-  resume_srv_ =
-      nh_.advertiseService(names::kResumeService, &GimbalControllerNode::on_resume, this);
+  resume_srv_ = nh_.advertiseService(names::kResumeService, &GimbalControllerNode::on_resume, this);
   updater_.reset(new diagnostic_updater::Updater(nh_, pnh_));
   updater_->setHardwareID(driver_->name() + " gimbal " + nh_.getNamespace());
   updater_->add("protocol", this, &GimbalControllerNode::diagnose);
@@ -171,8 +164,7 @@ GimbalControllerNode::GimbalControllerNode(ros::NodeHandle nh, ros::NodeHandle p
     const core::Phase phase = options_.resume_phase == "x"   ? core::Phase::X
                               : options_.resume_phase == "y" ? core::Phase::Y
                                                              : core::Phase::Z;
-    start_index_ =
-        find_position(phase, options_.resume_step, options_.resume_approach, false);
+    start_index_ = find_position(phase, options_.resume_step, options_.resume_approach, false);
     ROS_WARN("gimbal controller: runs begin at phase %s step %u (position %zu of %zu)",
              options_.resume_phase.c_str(), options_.resume_step, start_index_ + 1,
              schedule_.size());
@@ -250,13 +242,13 @@ bool GimbalControllerNode::on_abort(std_srvs::Trigger::Request&, std_srvs::Trigg
 }
 
 bool GimbalControllerNode::on_abort_run(AbortRun::Request& req, AbortRun::Response& res) {
-  res.success = abort(ros::Time::now(), req.reason.empty() ? "abort requested" : req.reason,
-                      &res.message);
+  res.success =
+      abort(ros::Time::now(), req.reason.empty() ? "abort requested" : req.reason, &res.message);
   return true;
 }
 
-std::size_t GimbalControllerNode::find_position(core::Phase phase, std::uint32_t step,
-                                                int approach, bool after) const {
+std::size_t GimbalControllerNode::find_position(core::Phase phase, std::uint32_t step, int approach,
+                                                bool after) const {
   for (std::size_t i = 0; i < schedule_.size(); ++i) {
     const core::ScheduledPosition& p = schedule_[i];
     if (p.phase == phase && p.step == step && p.approach == approach) return after ? i + 1 : i;
@@ -304,8 +296,8 @@ bool GimbalControllerNode::resume(const ros::Time& now, std::size_t index,
     begin_move(index, now);
     const core::ScheduledPosition& p = schedule_[index];
     s << "resume (" << reason << "): moving to phase " << core::phase_name(p.phase) << " step "
-      << p.step << (p.approach < 0 ? " (return sweep)" : "") << ", position " << index + 1
-      << " of " << schedule_.size() << ", MOVING stamp=" << now.toSec();
+      << p.step << (p.approach < 0 ? " (return sweep)" : "") << ", position " << index + 1 << " of "
+      << schedule_.size() << ", MOVING stamp=" << now.toSec();
   }
   last_error_.clear();
   *message = s.str();
@@ -379,8 +371,8 @@ void GimbalControllerNode::tick(const ros::Time& now) {
         std::string message;
         std::ostringstream reason;
         reason << "the gimbal did not settle at phase " << core::phase_name(schedule_[index_].phase)
-               << " step " << schedule_[index_].step << " within settle_timeout_s = "
-               << options_.settle_timeout_s << " s";
+               << " step " << schedule_[index_].step
+               << " within settle_timeout_s = " << options_.settle_timeout_s << " s";
         abort(now, reason.str(), &message);
         ROS_ERROR("gimbal controller: %s", message.c_str());
       }
@@ -398,8 +390,7 @@ void GimbalControllerNode::tick(const ros::Time& now) {
         changed = true;
       }
       break;
-    default:
-      break;
+    default: break;
   }
   publish_tf(now);
   if (updater_) updater_->update();
@@ -434,9 +425,9 @@ void GimbalControllerNode::publish_tf(const ros::Time& now) {
   const ros::Duration tick(1.0 / options_.tick_hz);
   if (!last_tf_.isZero() && now > last_tf_ && now - last_tf_ <= ros::Duration(1.0)) {
     for (ros::Time t = last_tf_ + tick; t < now; t += tick) {
-      const tf2_msgs::TFMessage at = make_tf_message(driver_->orientation(t.toSec()), t,
-                                                     options_.world_frame, options_.gimbal_frame,
-                                                     options_.dut_frame);
+      const tf2_msgs::TFMessage at =
+          make_tf_message(driver_->orientation(t.toSec()), t, options_.world_frame,
+                          options_.gimbal_frame, options_.dut_frame);
       msg.transforms.insert(msg.transforms.end(), at.transforms.begin(), at.transforms.end());
     }
   }
@@ -454,16 +445,12 @@ double GimbalControllerNode::time_left_s(const ros::Time& now) const {
   const double since = std::max(0.0, (now - state_since_).toSec());
   const core::ScheduledPosition& p = schedule_[index_];
   switch (state_) {
-    case State::Idle:
-      return total + options_.start_delay_s;
-    case State::Starting:
-      return total + std::max(0.0, (start_at_ - now).toSec());
-    case State::Moving:
-      return std::max(0.0, total - std::min(p.settled_s, p.move_start_s + since));
+    case State::Idle: return total + options_.start_delay_s;
+    case State::Starting: return total + std::max(0.0, (start_at_ - now).toSec());
+    case State::Moving: return std::max(0.0, total - std::min(p.settled_s, p.move_start_s + since));
     case State::Dwelling:
       return std::max(0.0, total - std::min(p.dwell_end_s, p.settled_s + since));
-    default:
-      return 0.0;
+    default: return 0.0;
   }
 }
 

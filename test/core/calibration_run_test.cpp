@@ -6,13 +6,14 @@
 // recording from the requested position onward, shifted to "now" (the rewound protocol); Abort
 // stops the stream; FitNow is answered with a successful fit. Faults are injected into the first
 // pass only, so a retried position is clean.
+#include "accel_intrinsics/core/calibration_run.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <functional>
 #include <set>
 
-#include "accel_intrinsics/core/calibration_run.h"
 #include "accel_intrinsics/core/simulator.h"
 
 namespace accel_intrinsics {
@@ -110,15 +111,9 @@ class FakeStand {
   void carry_out(CalibrationRun* run, const RunActions& actions) {
     for (const RunAction& a : actions) {
       switch (a.kind) {
-        case RunAction::Kind::DwellAccepted:
-          checkpoint_rows_.push_back(a.row);
-          break;
-        case RunAction::Kind::Log:
-          log_.push_back(a.text);
-          break;
-        case RunAction::Kind::CheckpointState:
-          checkpoint_ = run->checkpoint_state();
-          break;
+        case RunAction::Kind::DwellAccepted: checkpoint_rows_.push_back(a.row); break;
+        case RunAction::Kind::Log: log_.push_back(a.text); break;
+        case RunAction::Kind::CheckpointState: checkpoint_ = run->checkpoint_state(); break;
         case RunAction::Kind::ClearCheckpoint:
           checkpoint_rows_.clear();
           ++checkpoint_clears_;
@@ -137,8 +132,8 @@ class FakeStand {
           if (!controller_reachable_) {
             carry_out(run, run->on_resume_reply(a.request, false, false, "", 0.0, now_s_));
           } else if (refuse_resume_) {
-            carry_out(run, run->on_resume_reply(a.request, true, false, "no such position", 0.0,
-                                                now_s_));
+            carry_out(
+                run, run->on_resume_reply(a.request, true, false, "no such position", 0.0, now_s_));
           } else {
             const double stamp = rewind_to(a.request);
             carry_out(run, run->on_resume_reply(a.request, true, true, "resumed", stamp, now_s_));
@@ -293,8 +288,7 @@ TEST(CalibrationRun, TooFewSamplesAbortWithoutRetry) {
   EXPECT_NE(stand.aborts_[0].find("(on_fault: abort)"), std::string::npos);
   EXPECT_TRUE(stand.fitted_.empty());
   EXPECT_EQ(stand.checkpoint_.fault, stand.aborts_[0]);
-  EXPECT_NE(run.missing_message().find("run aborted: dwell phase x step 1 has"),
-            std::string::npos);
+  EXPECT_NE(run.missing_message().find("run aborted: dwell phase x step 1 has"), std::string::npos);
   // The rows before the fault stay in the checkpoint ("nothing lost").
   EXPECT_EQ(stand.checkpoint_rows_.size(), 1u);
 }
@@ -347,8 +341,7 @@ TEST(CalibrationRun, DwellWithoutAnySampleIsAFault) {
   stand.play(&run);
   EXPECT_EQ(run.state(), RunState::Aborted);
   ASSERT_EQ(stand.aborts_.size(), 1u);
-  EXPECT_NE(stand.aborts_[0].find("dwell phase x step 2 has no samples at all"),
-            std::string::npos);
+  EXPECT_NE(stand.aborts_[0].find("dwell phase x step 2 has no samples at all"), std::string::npos);
 }
 
 TEST(CalibrationRun, UnreachableControllerIsAskedAgain) {
@@ -499,8 +492,7 @@ TEST(CalibrationRun, FitFailureIsReportedWithTheMissingDwells) {
   ASSERT_EQ(stand.open_tickets_.size(), 1u);
   run.on_fit_finished(stand.open_tickets_[0], false, "phase z has 2 dwells");
   EXPECT_EQ(run.state(), RunState::FitFailed);
-  EXPECT_NE(run.missing_message().find("the fit failed (phase z has 2 dwells)"),
-            std::string::npos);
+  EXPECT_NE(run.missing_message().find("the fit failed (phase z has 2 dwells)"), std::string::npos);
 }
 
 TEST(CalibrationRun, NewRunRightAfterDoneStillFitsThePreviousOne) {

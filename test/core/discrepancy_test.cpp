@@ -53,9 +53,10 @@ const CandidateScore* find_candidate(const ScreeningStep& step, EffectKind kind,
 std::string describe(const AnalysisResult& a) {
   std::ostringstream os;
   os << "named:";
-  for (const NamedEffect& e : a.effects) os << ' ' << e.effect.label() << '=' << e.effect.value << "+-" << e.std;
-  os << "; chi2_r " << a.before.summary.reduced_chi2 << " -> " << a.after.summary.reduced_chi2 << " ("
-     << a.stop_reason << ")";
+  for (const NamedEffect& e : a.effects)
+    os << ' ' << e.effect.label() << '=' << e.effect.value << "+-" << e.std;
+  os << "; chi2_r " << a.before.summary.reduced_chi2 << " -> " << a.after.summary.reduced_chi2
+     << " (" << a.stop_reason << ")";
   return os.str();
 }
 
@@ -82,7 +83,8 @@ TEST_P(DiscrepancyHiddenEffect, NamedRecoveredAndGapClosed) {
   const double multiples[] = {3.0, 5.0, 10.0, 3.0, 5.0, 10.0};
   int trial = 0;
   for (double multiple : multiples) {
-    const std::uint64_t seed = 100 * (static_cast<std::uint64_t>(hc.kind) + 1) + static_cast<std::uint64_t>(trial);
+    const std::uint64_t seed =
+        100 * (static_cast<std::uint64_t>(hc.kind) + 1) + static_cast<std::uint64_t>(trial);
     SimulationOptions so = random_simulation(seed, hc.two_way);
     const int target = trial % 3;
     const double threshold = detection_threshold(so, hc.kind, target);
@@ -91,8 +93,8 @@ TEST_P(DiscrepancyHiddenEffect, NamedRecoveredAndGapClosed) {
     Effect hidden{hc.kind, target, sign * multiple * threshold};
     so.truth.effects = {hidden};
     const AnalysisResult a = analyze(simulate_position_table(so));
-    SCOPED_TRACE(hidden.label() + " = " + std::to_string(hidden.value) + " (" + std::to_string(multiple) +
-                 " x threshold): " + describe(a));
+    SCOPED_TRACE(hidden.label() + " = " + std::to_string(hidden.value) + " (" +
+                 std::to_string(multiple) + " x threshold): " + describe(a));
     ASSERT_FALSE(a.effects.empty());
     EXPECT_EQ(a.effects.front().effect.label(), hidden.label());
     const NamedEffect* e = find_named(a, hc.kind, target);
@@ -107,36 +109,43 @@ TEST_P(DiscrepancyHiddenEffect, NamedRecoveredAndGapClosed) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Discrepancy, DiscrepancyHiddenEffect,
-    ::testing::Values(HiddenCase{EffectKind::QuadraticNonlinearity, false},
-                      HiddenCase{EffectKind::CubicNonlinearity, false}, HiddenCase{EffectKind::AngleOffset, false},
-                      HiddenCase{EffectKind::AngleScale, false}, HiddenCase{EffectKind::AxisTilt, false},
-                      HiddenCase{EffectKind::OffsetDrift, false}, HiddenCase{EffectKind::Backlash, true}),
-    [](const ::testing::TestParamInfo<HiddenCase>& info) {
-      std::string name = effect_info(info.param.kind).name;
-      name.erase(std::remove(name.begin(), name.end(), '_'), name.end());
-      return name;
-    });
+INSTANTIATE_TEST_SUITE_P(Discrepancy, DiscrepancyHiddenEffect,
+                         ::testing::Values(HiddenCase{EffectKind::QuadraticNonlinearity, false},
+                                           HiddenCase{EffectKind::CubicNonlinearity, false},
+                                           HiddenCase{EffectKind::AngleOffset, false},
+                                           HiddenCase{EffectKind::AngleScale, false},
+                                           HiddenCase{EffectKind::AxisTilt, false},
+                                           HiddenCase{EffectKind::OffsetDrift, false},
+                                           HiddenCase{EffectKind::Backlash, true}),
+                         [](const ::testing::TestParamInfo<HiddenCase>& info) {
+                           std::string name = effect_info(info.param.kind).name;
+                           name.erase(std::remove(name.begin(), name.end(), '_'), name.end());
+                           return name;
+                         });
 
 TEST(Discrepancy, EffectFreeDataNamesNothingIn95PercentOf200Seeds) {
   int runs_naming_something = 0;
   int twin_checks = 0;
   for (int seed = 0; seed < 200; ++seed) {
-    const SimulationOptions so = random_simulation(10000 + static_cast<std::uint64_t>(seed), seed % 4 == 0);
+    const SimulationOptions so =
+        random_simulation(10000 + static_cast<std::uint64_t>(seed), seed % 4 == 0);
     const PositionTable table = simulate_position_table(so);
     const AnalysisResult a = analyze(table);
     if (!a.effects.empty()) ++runs_naming_something;
     // The twin reproduces the fit's own residuals.
     if (seed % 50 == 0) {
-      const std::vector<Eigen::Vector3d> r = twin_residuals(table, device_from_fit(a.before_fit), kStandardGravity);
-      for (std::size_t i = 0; i < r.size(); ++i) EXPECT_LT((r[i] - a.before_fit.residuals[i]).norm(), 1e-9);
+      const std::vector<Eigen::Vector3d> r =
+          twin_residuals(table, device_from_fit(a.before_fit), kStandardGravity);
+      for (std::size_t i = 0; i < r.size(); ++i)
+        EXPECT_LT((r[i] - a.before_fit.residuals[i]).norm(), 1e-9);
       ++twin_checks;
     }
   }
   EXPECT_EQ(twin_checks, 4);
-  std::cout << "[ INFO     ] " << runs_naming_something << " of 200 effect-free runs named an effect\n";
-  EXPECT_LE(runs_naming_something, 10) << runs_naming_something << " of 200 effect-free runs named an effect";
+  std::cout << "[ INFO     ] " << runs_naming_something
+            << " of 200 effect-free runs named an effect\n";
+  EXPECT_LE(runs_naming_something, 10)
+      << runs_naming_something << " of 200 effect-free runs named an effect";
 }
 
 TEST(Discrepancy, TwoHiddenEffectsAreBothNamed) {
@@ -169,14 +178,16 @@ TEST(Discrepancy, OneWayAngleOffsetIsAmbiguousWithBacklash) {
   EXPECT_EQ(a.effects.front().effect.label(), "angle_offset[y]");
   bool found = false;
   for (const Ambiguity& amb : a.ambiguous) {
-    if (std::find(amb.candidates.begin(), amb.candidates.end(), "backlash[y]") != amb.candidates.end()) {
+    if (std::find(amb.candidates.begin(), amb.candidates.end(), "backlash[y]") !=
+        amb.candidates.end()) {
       found = true;
       EXPECT_NE(amb.separating_experiment.find("two-way"), std::string::npos);
     }
   }
   EXPECT_TRUE(found);
   // Backlash is not screened on a one-way sweep, and the notes say why.
-  for (const ScreeningStep& s : a.steps) EXPECT_EQ(find_candidate(s, EffectKind::Backlash, 1), nullptr);
+  for (const ScreeningStep& s : a.steps)
+    EXPECT_EQ(find_candidate(s, EffectKind::Backlash, 1), nullptr);
 }
 
 TEST(Discrepancy, WithTwoWaySweepBacklashIsSeparatedFromAngleOffset) {

@@ -75,7 +75,8 @@ TEST(AnalysisNode, NamesTheHiddenEffectAndTheCertificateSaysWhichModel) {
   std::ifstream yaml(output_dir + "/intrinsics.yaml");
   std::string text((std::istreambuf_iterator<char>(yaml)), std::istreambuf_iterator<char>());
   // The refit is the certificate: its model and its fitted term (io/result_document.h keys).
-  EXPECT_NE(text.find("certificate_model: joint+quadratic_nonlinearity[u]"), std::string::npos) << text;
+  EXPECT_NE(text.find("certificate_model: joint+quadratic_nonlinearity[u]"), std::string::npos)
+      << text;
   EXPECT_NE(text.find("model_label: joint+quadratic_nonlinearity[u]"), std::string::npos) << text;
   EXPECT_NE(text.find("certificate_policy: refit"), std::string::npos) << text;
   const YAML::Node fitted = YAML::Load(text)["fitted_effects"];

@@ -74,8 +74,8 @@ inline ToolRun run_offline_fit(const std::vector<std::string>& args, const std::
 }
 
 // Polls `service` (GetIntrinsics) until success or timeout (wall time). Returns success.
-inline bool wait_for_result(const std::string& service, double timeout_s, accel_intrinsics::IntrinsicResult* result,
-                            std::string* last_message) {
+inline bool wait_for_result(const std::string& service, double timeout_s,
+                            accel_intrinsics::IntrinsicResult* result, std::string* last_message) {
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
   while (ros::ok() && ros::WallTime::now() < deadline) {
     accel_intrinsics::GetIntrinsics srv;
@@ -138,7 +138,8 @@ inline void expect_equal(const accel_intrinsics::IntrinsicResult& online, const 
   const geometry_msgs::Vector3* vectors[3] = {&online.u, &online.v, &online.w};
   for (int s = 0; s < 3; ++s) {
     EXPECT_EQ(online.responsivity[s], j["responsivity"][accel[s]].get<double>()) << accel[s];
-    EXPECT_EQ(online.responsivity_std[s], j["responsivity_std"][accel[s]].get<double>()) << accel[s];
+    EXPECT_EQ(online.responsivity_std[s], j["responsivity_std"][accel[s]].get<double>())
+        << accel[s];
     EXPECT_EQ(online.angles_deg[s], j["angles_deg"][angles[s]].get<double>()) << angles[s];
     EXPECT_EQ(online.angles_std_deg[s], j["angles_std_deg"][angles[s]].get<double>()) << angles[s];
     EXPECT_EQ(online.offset[s], j["offset"][accel[s]].get<double>()) << accel[s];
@@ -148,7 +149,8 @@ inline void expect_equal(const accel_intrinsics::IntrinsicResult& online, const 
     EXPECT_EQ(vectors[s]->z, j["vectors"][accel[s]][2].get<double>()) << accel[s];
     EXPECT_EQ(online.positions[s], j["positions"][phases[s]].get<std::uint32_t>()) << phases[s];
     for (int p = 0; p < 3; ++p) {
-      EXPECT_EQ(online.offset_per_phase[3 * s + p], j["offset_per_phase"][accel[s]][phases[p]].get<double>());
+      EXPECT_EQ(online.offset_per_phase[3 * s + p],
+                j["offset_per_phase"][accel[s]][phases[p]].get<double>());
       EXPECT_EQ(online.cross_sensitivity[3 * s + p], j["cross_sensitivity"][s][p].get<double>());
     }
   }
@@ -158,14 +160,17 @@ inline void expect_equal(const accel_intrinsics::IntrinsicResult& online, const 
 
 // Keys only one side writes: the node's stamp and sample counters; offline_fit's input
 // description. Every other key is shared and must mean the same (io/result_document.h).
-inline bool node_only_key(const std::string& key) { return key == "stamp" || key == "samples"; }
+inline bool node_only_key(const std::string& key) {
+  return key == "stamp" || key == "samples";
+}
 inline bool offline_only_key(const std::string& key) {
   return key == "input" || key == "complete" || key == "warnings";
 }
 
 // offline_fit's JSON against the node's intrinsics.yaml: the same keys at every level and the same
 // values (numbers to the last digit, null for null), except the keys one side alone writes.
-inline void expect_same_document(const nlohmann::json& j, const YAML::Node& y, const std::string& where = "") {
+inline void expect_same_document(const nlohmann::json& j, const YAML::Node& y,
+                                 const std::string& where = "") {
   if (j.is_object()) {
     ASSERT_TRUE(y.IsMap()) << where;
     std::set<std::string> json_keys, yaml_keys;
@@ -177,11 +182,13 @@ inline void expect_same_document(const nlohmann::json& j, const YAML::Node& y, c
       if (!(where.empty() && node_only_key(key))) yaml_keys.insert(key);
     }
     ASSERT_EQ(json_keys, yaml_keys) << "keys of '" << where << "'";
-    for (const std::string& key : json_keys) expect_same_document(j[key], y[key], where + "/" + key);
+    for (const std::string& key : json_keys)
+      expect_same_document(j[key], y[key], where + "/" + key);
   } else if (j.is_array()) {
     ASSERT_TRUE(y.IsSequence()) << where;
     ASSERT_EQ(j.size(), y.size()) << where;
-    for (std::size_t i = 0; i < j.size(); ++i) expect_same_document(j[i], y[i], where + "/" + std::to_string(i));
+    for (std::size_t i = 0; i < j.size(); ++i)
+      expect_same_document(j[i], y[i], where + "/" + std::to_string(i));
   } else if (j.is_null()) {
     EXPECT_TRUE(y.IsNull()) << where;
   } else if (j.is_boolean()) {

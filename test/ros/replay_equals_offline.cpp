@@ -33,7 +33,8 @@ TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
            ros::service::exists("/gimbal_controller/start", false))) {
     ros::WallDuration(0.2).sleep();
   }
-  ASSERT_TRUE(oc::subscribed(recorder, {"/gimbal/command", "/imu/data_raw"})) << "recorder not subscribed";
+  ASSERT_TRUE(oc::subscribed(recorder, {"/gimbal/command", "/imu/data_raw"}))
+      << "recorder not subscribed";
   ros::WallDuration(0.5).sleep();
 
   std_srvs::Trigger start;
@@ -42,19 +43,22 @@ TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
 
   accel_intrinsics::IntrinsicResult online;
   std::string message;
-  ASSERT_TRUE(oc::wait_for_result("/calibration/get_intrinsics", timeout_s, &online, &message)) << message;
+  ASSERT_TRUE(oc::wait_for_result("/calibration/get_intrinsics", timeout_s, &online, &message))
+      << message;
   // Keep recording a little past the result (the bag then holds the latched result too).
   ros::WallDuration(1.0).sleep();
   ASSERT_TRUE(oc::shutdown_node(recorder));
   const ros::WallTime closed_by = ros::WallTime::now() + ros::WallDuration(30.0);
-  while (ros::WallTime::now() < closed_by && (!oc::file_exists(bag) || oc::file_exists(bag + ".active"))) {
+  while (ros::WallTime::now() < closed_by &&
+         (!oc::file_exists(bag) || oc::file_exists(bag + ".active"))) {
     ros::WallDuration(0.2).sleep();
   }
   ASSERT_TRUE(oc::file_exists(bag)) << "the recorder did not close " << bag;
 
   const std::string json_path = bag + ".json";
   const std::string csv_path = bag + ".csv";
-  const oc::ToolRun r = oc::run_offline_fit({"--bag", bag, "--json", json_path, "--csv-out", csv_path}, bag + ".err");
+  const oc::ToolRun r =
+      oc::run_offline_fit({"--bag", bag, "--json", json_path, "--csv-out", csv_path}, bag + ".err");
   ASSERT_EQ(r.status, 0) << r.err;
   const nlohmann::json j = nlohmann::json::parse(oc::read_file(json_path));
   EXPECT_EQ(j["complete"], true) << j["warnings"].dump();
@@ -68,17 +72,20 @@ TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
   if (!online_dir.empty()) {
     const std::string yaml_path = online_dir + "/intrinsics.yaml";
     const ros::WallTime written_by = ros::WallTime::now() + ros::WallDuration(10.0);
-    while (ros::WallTime::now() < written_by && !oc::file_exists(yaml_path)) ros::WallDuration(0.1).sleep();
+    while (ros::WallTime::now() < written_by && !oc::file_exists(yaml_path))
+      ros::WallDuration(0.1).sleep();
     ASSERT_TRUE(oc::file_exists(yaml_path));
     const YAML::Node node_result = YAML::LoadFile(yaml_path);
-    for (const char* key : {"model", "responsivity", "angles_deg", "vectors", "offset", "offset_per_phase",
-                            "cross_sensitivity", "local_gravity", "reduced_chi2", "residual_rms", "positions",
-                            "fitted_effects", "certificate_model", "certificate_policy", "model_label"}) {
+    for (const char* key :
+         {"model", "responsivity", "angles_deg", "vectors", "offset", "offset_per_phase",
+          "cross_sensitivity", "local_gravity", "reduced_chi2", "residual_rms", "positions",
+          "fitted_effects", "certificate_model", "certificate_policy", "model_label"}) {
       EXPECT_TRUE(j.contains(key)) << key;
     }
     EXPECT_TRUE(node_result["stamp"] && node_result["samples"]["used"]);
     oc::expect_same_document(j, node_result);
-    EXPECT_EQ(node_result["samples"]["used"].as<std::uint64_t>(), j["input"]["samples_used"].get<std::uint64_t>());
+    EXPECT_EQ(node_result["samples"]["used"].as<std::uint64_t>(),
+              j["input"]["samples_used"].get<std::uint64_t>());
   }
 
   // The dwells themselves: the node's checkpoint file and offline_fit's table, byte for byte.
@@ -89,7 +96,8 @@ TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
   }
   // Passed: remove this run's files (kept on failure, to look at).
   if (!HasFailure() && std::getenv("KEEP_TEST_FILES") == nullptr) {
-    for (const std::string& path : {bag, json_path, csv_path, bag + ".err"}) std::remove(path.c_str());
+    for (const std::string& path : {bag, json_path, csv_path, bag + ".err"})
+      std::remove(path.c_str());
     if (!online_dir.empty()) std::system(("rm -rf '" + online_dir + "'").c_str());
   }
 }

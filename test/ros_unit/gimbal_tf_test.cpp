@@ -12,8 +12,8 @@
 #include "accel_intrinsics/core/protocol.h"
 #include "accel_intrinsics/core/simulator.h"
 #include "accel_intrinsics/drivers/accelerometer_source.h"
-#include "accel_intrinsics/ros/gimbal_controller_node.h"
 #include "accel_intrinsics/drivers/gimbal_driver.h"
+#include "accel_intrinsics/ros/gimbal_controller_node.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;

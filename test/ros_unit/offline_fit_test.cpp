@@ -4,21 +4,22 @@
 // tests run the built binary (--help, command-line errors, one bag and one CSV run); it is found
 // next to this test binary (catkin puts both in devel/lib/accel_intrinsics) or through the
 // environment variable ACCEL_OFFLINE_FIT.
-#include <Eigen/Dense>
-#include <gtest/gtest.h>
+#include "accel_intrinsics/ros/offline_fit.h"
 
-#include <functional>
+#include <gtest/gtest.h>
 #include <rosbag/bag.h>
 #include <sensor_msgs/Imu.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -34,7 +35,6 @@
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/bag_input.h"
 #include "accel_intrinsics/ros/conversions.h"
-#include "accel_intrinsics/ros/offline_fit.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
@@ -173,7 +173,8 @@ ToolRun run_tool(const std::vector<std::string>& args, const TempDir&) {
   return r;
 }
 
-// ---- writing bags ---------------------------------------------------------------------------------
+// ---- writing bags
+// ---------------------------------------------------------------------------------
 
 sensor_msgs::Imu imu_msg(double stamp, const Eigen::Vector3d& r) {
   sensor_msgs::Imu msg;
@@ -190,8 +191,8 @@ sensor_msgs::Imu imu_msg(double stamp, const Eigen::Vector3d& r) {
   return msg;
 }
 
-ai::GimbalCommand command_msg(double stamp, int phase, std::uint32_t step, std::uint32_t steps, double angle,
-                              std::uint8_t state) {
+ai::GimbalCommand command_msg(double stamp, int phase, std::uint32_t step, std::uint32_t steps,
+                              double angle, std::uint8_t state) {
   ai::GimbalCommand msg;
   msg.header.stamp.fromSec(stamp);
   msg.phase = static_cast<std::uint8_t>(phase);
@@ -208,9 +209,13 @@ struct BagWriter {
   std::string imu_topic = "/imu/data_raw";
   std::string command_topic = "/gimbal/command";
   explicit BagWriter(const std::string& path) { bag.open(path, rosbag::bagmode::Write); }
-  void imu(double t, const Eigen::Vector3d& r) { bag.write(imu_topic, ros::Time(t + 0.001), imu_msg(t, r)); }
-  void command(double t, int phase, std::uint32_t step, std::uint32_t steps, double angle, std::uint8_t state) {
-    bag.write(command_topic, ros::Time(t + 0.001), command_msg(t, phase, step, steps, angle, state));
+  void imu(double t, const Eigen::Vector3d& r) {
+    bag.write(imu_topic, ros::Time(t + 0.001), imu_msg(t, r));
+  }
+  void command(double t, int phase, std::uint32_t step, std::uint32_t steps, double angle,
+               std::uint8_t state) {
+    bag.write(command_topic, ros::Time(t + 0.001),
+              command_msg(t, phase, step, steps, angle, state));
   }
 };
 
@@ -220,7 +225,9 @@ Eigen::Matrix3d device_S() {
   S << 1.01, 0.02, -0.01, 0.0, 0.99, 0.03, 0.01, -0.02, 1.02;
   return S;
 }
-Eigen::Vector3d device_O() { return Eigen::Vector3d(0.1, -0.2, 0.05); }
+Eigen::Vector3d device_O() {
+  return Eigen::Vector3d(0.1, -0.2, 0.05);
+}
 
 Eigen::Vector3d direction(int phase, double a) {
   if (phase == 0) return Eigen::Vector3d(0, std::sin(a), std::cos(a));
@@ -298,7 +305,8 @@ HandRun write_hand_run(BagWriter& writer, const HandRunOptions& o) {
         ++run.imu_messages;
         dwell.samples.push_back(r);
         if (k < o.nan_samples_per_dwell) {
-          writer.imu(settled + 0.1 * k + 0.05, Eigen::Vector3d(std::numeric_limits<double>::quiet_NaN(), 1.0, 1.0));
+          writer.imu(settled + 0.1 * k + 0.05,
+                     Eigen::Vector3d(std::numeric_limits<double>::quiet_NaN(), 1.0, 1.0));
           ++run.imu_messages;
           ++run.dropped_nan;
         }
@@ -345,7 +353,8 @@ void write_recording_bag(const std::string& path, const core::Recording& rec,
   std::size_t c = 0, s = 0;
   while (c < rec.commands.size() || s < rec.samples.size()) {
     const bool take_command =
-        s == rec.samples.size() || (c < rec.commands.size() && rec.commands[c].stamp_s <= rec.samples[s].stamp_s);
+        s == rec.samples.size() ||
+        (c < rec.commands.size() && rec.commands[c].stamp_s <= rec.samples[s].stamp_s);
     if (take_command) {
       const auto& e = rec.commands[c++];
       bag.write("/gimbal/command", ros::Time(e.stamp_s), ai::to_msg(e));
@@ -360,7 +369,9 @@ void write_recording_bag(const std::string& path, const core::Recording& rec,
   bag.close();
 }
 
-json load_json(const std::string& path) { return json::parse(read_file(path)); }
+json load_json(const std::string& path) {
+  return json::parse(read_file(path));
+}
 
 void expect_single_line_error(const ToolRun& r, const std::string& needle) {
   EXPECT_NE(r.status, 0);
@@ -371,9 +382,10 @@ void expect_single_line_error(const ToolRun& r, const std::string& needle) {
 
 // The contract keys (DESIGN.md section 2) and their shapes.
 void expect_contract_keys(const json& j) {
-  for (const char* key : {"model", "responsivity", "responsivity_std", "angles_deg", "angles_std_deg", "vectors",
-                          "offset", "offset_per_phase", "cross_sensitivity", "local_gravity", "reduced_chi2",
-                          "residual_rms", "positions"}) {
+  for (const char* key :
+       {"model", "responsivity", "responsivity_std", "angles_deg", "angles_std_deg", "vectors",
+        "offset", "offset_per_phase", "cross_sensitivity", "local_gravity", "reduced_chi2",
+        "residual_rms", "positions"}) {
     EXPECT_TRUE(j.contains(key)) << key;
   }
   for (const char* s : {"u", "v", "w"}) {
@@ -403,16 +415,16 @@ json fit_part(json j) {
 // ---- tests --------------------------------------------------------------------------------------
 
 TEST(OfflineFit, BinaryIsThere) {
-  ASSERT_TRUE(file_exists(offline_fit_binary())) << offline_fit_binary()
-                                                 << " missing; set ACCEL_OFFLINE_FIT to the built binary";
+  ASSERT_TRUE(file_exists(offline_fit_binary()))
+      << offline_fit_binary() << " missing; set ACCEL_OFFLINE_FIT to the built binary";
 }
 
 TEST(OfflineFit, HandMadeBagGivesHandComputedDwellMeans) {
   TempDir dir;
   const HandRun run = make_hand_bag(dir.file("run.bag"));
-  const ToolRun r = run_tool({"--bag", dir.file("run.bag"), "--csv-out", dir.file("table.csv"), "--json",
-                          dir.file("result.json")},
-                         dir);
+  const ToolRun r = run_tool({"--bag", dir.file("run.bag"), "--csv-out", dir.file("table.csv"),
+                              "--json", dir.file("result.json")},
+                             dir);
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(r.err, "");
   EXPECT_NE(r.out.find("|u|"), std::string::npos) << r.out;
@@ -454,20 +466,22 @@ TEST(OfflineFit, HandMadeBagGivesHandComputedDwellMeans) {
   EXPECT_NEAR(j["angles_deg"]["uv"].get<double>(), std::acos(cos_uv) * 180.0 / kPi, 1e-7);
   const Eigen::Matrix3d P = S.inverse();
   for (int r2 = 0; r2 < 3; ++r2)
-    for (int c = 0; c < 3; ++c) EXPECT_NEAR(j["cross_sensitivity"][r2][c].get<double>(), P(r2, c), 1e-9);
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(j["cross_sensitivity"][r2][c].get<double>(), P(r2, c), 1e-9);
 }
 
 TEST(OfflineFit, CsvInEqualsBagIn) {
   TempDir dir;
   make_hand_bag(dir.file("run.bag"));
   for (const std::string model : {"joint", "eq4"}) {
-    const ToolRun from_bag = run_tool({"--bag", dir.file("run.bag"), "--model", model, "--gravity", "9.8123",
-                                   "--csv-out", dir.file("table.csv"), "--json", dir.file("bag.json")},
-                                  dir);
+    const ToolRun from_bag =
+        run_tool({"--bag", dir.file("run.bag"), "--model", model, "--gravity", "9.8123",
+                  "--csv-out", dir.file("table.csv"), "--json", dir.file("bag.json")},
+                 dir);
     ASSERT_EQ(from_bag.status, 0) << from_bag.err;
-    const ToolRun from_csv = run_tool({"--csv", dir.file("table.csv"), "--model", model, "--gravity", "9.8123", "--json",
-                                   dir.file("csv.json")},
-                                  dir);
+    const ToolRun from_csv = run_tool({"--csv", dir.file("table.csv"), "--model", model,
+                                       "--gravity", "9.8123", "--json", dir.file("csv.json")},
+                                      dir);
     ASSERT_EQ(from_csv.status, 0) << from_csv.err;
     const json jb = load_json(dir.file("bag.json"));
     const json jc = load_json(dir.file("csv.json"));
@@ -481,7 +495,8 @@ TEST(OfflineFit, CsvInEqualsBagIn) {
 TEST(OfflineFit, CsvRoundTripThroughCsvOut) {
   TempDir dir;
   make_hand_bag(dir.file("run.bag"));
-  ASSERT_EQ(run_tool({"--bag", dir.file("run.bag"), "--csv-out", dir.file("a.csv")}, dir).status, 0);
+  ASSERT_EQ(run_tool({"--bag", dir.file("run.bag"), "--csv-out", dir.file("a.csv")}, dir).status,
+            0);
   const ToolRun r = run_tool({"--csv", dir.file("a.csv"), "--csv-out", dir.file("b.csv")}, dir);
   ASSERT_EQ(r.status, 0) << r.err;
   const std::string a = read_file(dir.file("a.csv"));
@@ -519,10 +534,11 @@ TEST(OfflineFit, SimulatedRecordingMatchesInProcessPipeline) {
 
   // Write and feed alike, in the order the messages would arrive.
   core::DwellAssembler assembler;
-  write_recording_bag(dir.file("sim.bag"), rec, [&](const core::GimbalEvent& e) { assembler.add_command(e); },
-                      [&](const sensor_msgs::Imu& msg) {
-                        assembler.add_sample(ai::to_core(msg));  // the stamp as it travels (ros::Time)
-                      });
+  write_recording_bag(
+      dir.file("sim.bag"), rec, [&](const core::GimbalEvent& e) { assembler.add_command(e); },
+      [&](const sensor_msgs::Imu& msg) {
+        assembler.add_sample(ai::to_core(msg));  // the stamp as it travels (ros::Time)
+      });
   assembler.flush();
   const core::FitResult expected = core::fit(assembler.table());
 
@@ -537,7 +553,8 @@ TEST(OfflineFit, SimulatedRecordingMatchesInProcessPipeline) {
   for (int s = 0; s < 3; ++s) {
     const double std_s = j["responsivity_std"][names[s]].get<double>();
     EXPECT_GT(std_s, 0.0);
-    EXPECT_NEAR(j["responsivity"][names[s]].get<double>(), sim.truth.S.row(s).norm(), 6 * std_s) << names[s];
+    EXPECT_NEAR(j["responsivity"][names[s]].get<double>(), sim.truth.S.row(s).norm(), 6 * std_s)
+        << names[s];
   }
 }
 
@@ -558,7 +575,8 @@ TEST(OfflineFit, AnalyzeNamesATimingLagHiddenInTheRawStreams) {
   for (auto& e : rec.commands) e.stamp_s += 1000.0;  // a bag needs positive times
   for (auto& e : rec.samples) e.stamp_s += 1000.0;
   write_recording_bag(dir.file("lag.bag"), rec);
-  const ToolRun r = run_tool({"--bag", dir.file("lag.bag"), "--analyze", "--json", dir.file("lag.json")}, dir);
+  const ToolRun r =
+      run_tool({"--bag", dir.file("lag.bag"), "--analyze", "--json", dir.file("lag.json")}, dir);
   ASSERT_EQ(r.status, 0) << r.err;
   const json j = load_json(dir.file("lag.json"));
   ASSERT_TRUE(j.contains("timing_lag")) << j.dump();
@@ -569,7 +587,8 @@ TEST(OfflineFit, AnalyzeNamesATimingLagHiddenInTheRawStreams) {
   EXPECT_GT(std_s, 0.0);
   EXPECT_NEAR(value, lag_s, 3 * std_s);
   bool named = false;
-  for (const auto& e : j["effects"]) named = named || (e["name"] == "timing_lag" && e["target"] == "all");
+  for (const auto& e : j["effects"])
+    named = named || (e["name"] == "timing_lag" && e["target"] == "all");
   EXPECT_TRUE(named) << j["effects"].dump();
 }
 
@@ -578,9 +597,9 @@ TEST(OfflineFit, NanSamplesAreDroppedCountedAndFitSucceeds) {
   HandRunOptions o;
   o.nan_samples_per_dwell = 2;
   const HandRun run = make_hand_bag(dir.file("nan.bag"), o);
-  const ToolRun r = run_tool({"--bag", dir.file("nan.bag"), "--json", dir.file("nan.json"), "--csv-out",
-                          dir.file("nan.csv")},
-                         dir);
+  const ToolRun r = run_tool({"--bag", dir.file("nan.bag"), "--json", dir.file("nan.json"),
+                              "--csv-out", dir.file("nan.csv")},
+                             dir);
   ASSERT_EQ(r.status, 0) << r.err;
   const json j = load_json(dir.file("nan.json"));
   EXPECT_EQ(j["input"]["dropped_non_finite"].get<std::uint64_t>(), run.dropped_nan);
@@ -605,8 +624,8 @@ TEST(OfflineFit, NamespacedTopicsResolve) {
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(load_json(dir.file("ns.json"))["input"]["imu_topic"], "/stand1/imu/data_raw");
   // Leading slash on the request: that exact topic.
-  r = run_tool({"--bag", dir.file("ns.bag"), "--imu-topic", "/stand1/imu/data_raw", "--command-topic",
-                "stand1/gimbal/command"},
+  r = run_tool({"--bag", dir.file("ns.bag"), "--imu-topic", "/stand1/imu/data_raw",
+                "--command-topic", "stand1/gimbal/command"},
                dir);
   EXPECT_EQ(r.status, 0) << r.err;
   r = run_tool({"--bag", dir.file("ns.bag"), "--imu-topic", "/imu/data_raw"}, dir);
@@ -629,7 +648,8 @@ TEST(OfflineFit, TwoNamespacesNeedAChoice) {
   expect_single_line_error(r, "ambiguous");
   EXPECT_NE(r.err.find("/stand2/imu/data_raw"), std::string::npos) << r.err;
   // Naming one topic picks the other from the same namespace.
-  r = run_tool({"--bag", dir.file("two.bag"), "--imu-topic", "stand2/imu/data_raw", "--json", dir.file("t.json")},
+  r = run_tool({"--bag", dir.file("two.bag"), "--imu-topic", "stand2/imu/data_raw", "--json",
+                dir.file("t.json")},
                dir);
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(load_json(dir.file("t.json"))["input"]["command_topic"], "/stand2/gimbal/command");
@@ -670,9 +690,9 @@ TEST(OfflineFit, SettleDiscardDropsTheFirstSecondsOfEachDwell) {
   EXPECT_EQ(j["input"]["dropped_outside_dwell"].get<std::uint64_t>(), run.dropped_outside);
 
   // 0 (the default, spelled out) is the old behaviour: all five samples.
-  const ToolRun zero = run_tool({"--bag", dir.file("run.bag"), "--settle-discard", "0", "--json",
-                                 dir.file("zero.json")},
-                                dir);
+  const ToolRun zero = run_tool(
+      {"--bag", dir.file("run.bag"), "--settle-discard", "0", "--json", dir.file("zero.json")},
+      dir);
   ASSERT_EQ(zero.status, 0) << zero.err;
   const json z = load_json(dir.file("zero.json"));
   EXPECT_EQ(z["input"]["samples_used"].get<std::uint64_t>(), 5u * run.dwells.size());
@@ -707,8 +727,10 @@ TEST(OfflineFitBadInput, TruncatedBag) {
   const std::string full = read_file(dir.file("run.bag"));
   for (double fraction : {0.5, 0.9, 0.02}) {
     const std::string cut = dir.file("cut.bag");
-    std::ofstream(cut, std::ios::binary) << full.substr(0, static_cast<std::size_t>(full.size() * fraction));
-    const ToolRun r = run_tool({"--bag", cut, "--json", dir.file("out.json"), "--csv-out", dir.file("out.csv")}, dir);
+    std::ofstream(cut, std::ios::binary)
+        << full.substr(0, static_cast<std::size_t>(full.size() * fraction));
+    const ToolRun r = run_tool(
+        {"--bag", cut, "--json", dir.file("out.json"), "--csv-out", dir.file("out.csv")}, dir);
     EXPECT_EQ(r.status, 1) << fraction;
     expect_single_line_error(r, "cannot read bag");
     EXPECT_NE(r.err.find("truncated"), std::string::npos) << r.err;
@@ -746,7 +768,8 @@ TEST(OfflineFitBadInput, MissingTopicIsNamedAndBagTopicsListed) {
   EXPECT_EQ(r.status, 1);
   expect_single_line_error(r, "topic 'accel/raw' not found");
   EXPECT_NE(r.err.find("/imu/data_raw (sensor_msgs/Imu"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("/gimbal/command (accel_intrinsics/GimbalCommand"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("/gimbal/command (accel_intrinsics/GimbalCommand"), std::string::npos)
+      << r.err;
 
   // A bag with IMU data only.
   {
@@ -767,7 +790,8 @@ TEST(OfflineFitBadInput, MissingTopicIsNamedAndBagTopicsListed) {
 TEST(OfflineFitBadInput, MalformedCsvRowNamesItsLine) {
   TempDir dir;
   make_hand_bag(dir.file("run.bag"));
-  ASSERT_EQ(run_tool({"--bag", dir.file("run.bag"), "--csv-out", dir.file("good.csv")}, dir).status, 0);
+  ASSERT_EQ(run_tool({"--bag", dir.file("run.bag"), "--csv-out", dir.file("good.csv")}, dir).status,
+            0);
   std::istringstream in(read_file(dir.file("good.csv")));
   std::string line;
   std::vector<std::string> lines;
@@ -860,7 +884,8 @@ TEST(OfflineFitBadInput, CommandLine) {
   expect_single_line_error(r, "--gravity 980.665");
 }
 
-// ---- the command line (the binary) ---------------------------------------------------------------
+// ---- the command line (the binary)
+// ---------------------------------------------------------------
 
 TEST(OfflineFitCommandLine, HelpAndBadArguments) {
   TempDir dir;
@@ -879,8 +904,8 @@ TEST(OfflineFitCommandLine, HelpAndBadArguments) {
   expect_single_line_error(r, "--model");
   r = run_binary({"--help"}, dir);
   EXPECT_EQ(r.status, 0);
-  for (const char* opt : {"--bag", "--csv", "--imu-topic", "--command-topic", "--gravity", "--model", "--analyze",
-                          "--json", "--csv-out", "--settle-discard"}) {
+  for (const char* opt : {"--bag", "--csv", "--imu-topic", "--command-topic", "--gravity",
+                          "--model", "--analyze", "--json", "--csv-out", "--settle-discard"}) {
     EXPECT_NE(r.out.find(opt), std::string::npos) << opt;
   }
 }
@@ -889,13 +914,13 @@ TEST(OfflineFitCommandLine, HelpAndBadArguments) {
 TEST(OfflineFitCommandLine, BagAndCsvRunsEqualTheLibrary) {
   TempDir dir;
   make_hand_bag(dir.file("run.bag"));
-  const ToolRun bin = run_binary({"--bag", dir.file("run.bag"), "--json", dir.file("bin.json"), "--csv-out",
-                                  dir.file("bin.csv")},
+  const ToolRun bin = run_binary({"--bag", dir.file("run.bag"), "--json", dir.file("bin.json"),
+                                  "--csv-out", dir.file("bin.csv")},
                                  dir);
   ASSERT_EQ(bin.status, 0) << bin.err;
   EXPECT_EQ(bin.err, "");
-  const ToolRun lib = run_tool({"--bag", dir.file("run.bag"), "--json", dir.file("lib.json"), "--csv-out",
-                                dir.file("lib.csv")},
+  const ToolRun lib = run_tool({"--bag", dir.file("run.bag"), "--json", dir.file("lib.json"),
+                                "--csv-out", dir.file("lib.csv")},
                                dir);
   ASSERT_EQ(lib.status, 0) << lib.err;
   EXPECT_EQ(read_file(dir.file("bin.csv")), read_file(dir.file("lib.csv")));
@@ -905,9 +930,11 @@ TEST(OfflineFitCommandLine, BagAndCsvRunsEqualTheLibrary) {
   jl["input"].erase("read_wall_s");
   EXPECT_EQ(jb, jl);
 
-  const ToolRun csv = run_binary({"--csv", dir.file("bin.csv"), "--model", "eq4", "--json", "-"}, dir);
+  const ToolRun csv =
+      run_binary({"--csv", dir.file("bin.csv"), "--model", "eq4", "--json", "-"}, dir);
   ASSERT_EQ(csv.status, 0) << csv.err;
-  const ToolRun csv_lib = run_tool({"--csv", dir.file("bin.csv"), "--model", "eq4", "--json", "-"}, dir);
+  const ToolRun csv_lib =
+      run_tool({"--csv", dir.file("bin.csv"), "--model", "eq4", "--json", "-"}, dir);
   EXPECT_EQ(csv.out, csv_lib.out);  // the JSON on stdout
   EXPECT_EQ(csv.err, csv_lib.err);  // the report on stderr
   EXPECT_EQ(json::parse(csv.out)["model"], "eq4");
@@ -918,7 +945,8 @@ TEST(OfflineFitCommandLine, BagAndCsvRunsEqualTheLibrary) {
 TEST(OfflineFit, AnalyzeAddsContractKeysOrRefusesCleanly) {
   TempDir dir;
   make_hand_bag(dir.file("run.bag"));
-  const ToolRun r = run_tool({"--bag", dir.file("run.bag"), "--analyze", "--json", dir.file("a.json")}, dir);
+  const ToolRun r =
+      run_tool({"--bag", dir.file("run.bag"), "--analyze", "--json", dir.file("a.json")}, dir);
   if (r.status == 0) {
     const json j = load_json(dir.file("a.json"));
     expect_contract_keys(j);
@@ -937,13 +965,15 @@ TEST(OfflineFit, AnalyzeAddsContractKeysOrRefusesCleanly) {
   }
 }
 
-// ---- bag_input API --------------------------------------------------------------------------------
+// ---- bag_input API
+// --------------------------------------------------------------------------------
 
 TEST(BagInput, ResolveTopicRules) {
-  const std::vector<ai::BagTopic> topics = {{"/a/imu/data_raw", "sensor_msgs/Imu", 1},
-                                            {"/b/imu/data_raw", "sensor_msgs/Imu", 1},
-                                            {"/imu/data_raw", "sensor_msgs/Imu", 1},
-                                            {"/b/gimbal/command", "accel_intrinsics/GimbalCommand", 1}};
+  const std::vector<ai::BagTopic> topics = {
+      {"/a/imu/data_raw", "sensor_msgs/Imu", 1},
+      {"/b/imu/data_raw", "sensor_msgs/Imu", 1},
+      {"/imu/data_raw", "sensor_msgs/Imu", 1},
+      {"/b/gimbal/command", "accel_intrinsics/GimbalCommand", 1}};
   EXPECT_EQ(ai::resolve_topic("imu/data_raw", topics, "sensor_msgs/Imu"), "/imu/data_raw");
   EXPECT_EQ(ai::resolve_topic("/imu/data_raw", topics, ""), "/imu/data_raw");
   EXPECT_EQ(ai::resolve_topic("a/imu/data_raw", topics, ""), "/a/imu/data_raw");
@@ -952,12 +982,14 @@ TEST(BagInput, ResolveTopicRules) {
   EXPECT_EQ(ai::topic_namespace("/gimbal/command", "gimbal/command"), "/");
   EXPECT_THROW(ai::resolve_topic("/gimbal/command", topics, ""), ai::BagInputError);
   EXPECT_THROW(ai::resolve_topic("data_raw", topics, ""), ai::BagInputError);  // 3 candidates
-  EXPECT_EQ(ai::resolve_topic("data_raw", {topics[0], topics[1]}, "", "/b/imu/"), "/b/imu/data_raw");
+  EXPECT_EQ(ai::resolve_topic("data_raw", {topics[0], topics[1]}, "", "/b/imu/"),
+            "/b/imu/data_raw");
   try {
     ai::resolve_topic("gimbal/command", topics, "sensor_msgs/Imu");
     FAIL();
   } catch (const ai::BagInputError& e) {
-    EXPECT_NE(std::string(e.what()).find("has type accel_intrinsics/GimbalCommand"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("has type accel_intrinsics/GimbalCommand"),
+              std::string::npos);
   }
 }
 
@@ -1055,7 +1087,8 @@ TEST(BagInput, ChunkScanEqualsView) {
   } catch (const ai::BagInputError& e) {
     view_error = e.what();
   }
-  EXPECT_NE(scan_error.find("/imu/data_raw (sensor_msgs/Imu, 127 msgs)"), std::string::npos) << scan_error;
+  EXPECT_NE(scan_error.find("/imu/data_raw (sensor_msgs/Imu, 127 msgs)"), std::string::npos)
+      << scan_error;
   EXPECT_EQ(scan_error, view_error);
   for (auto compression : {rosbag::compression::LZ4, rosbag::compression::BZ2}) {
     BagWriter writer(dir.file("packed.bag"));

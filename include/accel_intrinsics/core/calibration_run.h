@@ -88,9 +88,9 @@ struct RunAction {
   Kind kind = Kind::Log;
   Level level = Level::Info;
   std::string text;
-  bool repeating = false;      // Log of a counter that may grow fast (drops): throttle it
-  DwellRecord row;             // DwellAccepted
-  ControllerRequest request;   // ResumeAt, Abort
+  bool repeating = false;     // Log of a counter that may grow fast (drops): throttle it
+  DwellRecord row;            // DwellAccepted
+  ControllerRequest request;  // ResumeAt, Abort
   // FitNow: what to fit (a copy: the run may move on before the shell fits), the recorded
   // moves (record_moves) and the ticket to hand back to fit_may_publish / on_fit_finished.
   PositionTable table;
@@ -114,21 +114,21 @@ struct CheckpointState {
 struct RunStatus {
   RunState state = RunState::Idle;
   std::array<int, 3> dwells_per_phase{{0, 0, 0}};
-  std::uint32_t steps = 0;               // N of the run (or the expected N)
-  AssemblerCounters counters;            // over every assembler of this run (restarts included)
+  std::uint32_t steps = 0;     // N of the run (or the expected N)
+  AssemblerCounters counters;  // over every assembler of this run (restarts included)
   std::uint64_t commands_received = 0;
-  std::uint64_t commands_rejected = 0;   // malformed commands
-  std::string fault;                     // why the run was aborted (ours or the controller's)
-  std::string last_fault;                // the latest fault, retried or not
-  std::string fit_error;                 // why the fit failed
-  std::uint64_t retries = 0;             // positions measured again
-  std::uint64_t dwells_discarded = 0;    // measured before a rewind
-  bool restored = false;                 // rows were reloaded from a checkpoint
-  bool in_dwell = false;                 // the assembler is accumulating a dwell:
-  Phase dwell_phase = Phase::X;          //   which one,
+  std::uint64_t commands_rejected = 0;  // malformed commands
+  std::string fault;                    // why the run was aborted (ours or the controller's)
+  std::string last_fault;               // the latest fault, retried or not
+  std::string fit_error;                // why the fit failed
+  std::uint64_t retries = 0;            // positions measured again
+  std::uint64_t dwells_discarded = 0;   // measured before a rewind
+  bool restored = false;                // rows were reloaded from a checkpoint
+  bool in_dwell = false;                // the assembler is accumulating a dwell:
+  Phase dwell_phase = Phase::X;         //   which one,
   std::uint32_t dwell_step = 0;
-  std::uint64_t dwell_samples = 0;       //   and its samples so far
-  bool imu_silent = false;               // no samples for imu_timeout_s during a dwell
+  std::uint64_t dwell_samples = 0;  //   and its samples so far
+  bool imu_silent = false;          // no samples for imu_timeout_s during a dwell
   double newest_sample_stamp_s = -std::numeric_limits<double>::infinity();
 };
 
@@ -229,18 +229,18 @@ class CalibrationRun {
   std::uint64_t commands_rejected_ = 0;
   bool done_pending_ = false;  // DONE received, waiting for the reorder window
   double done_stamp_s_ = 0.0;
-  bool fitting_ = false;       // FitNow handed out, on_fit_finished not yet called
-  std::uint64_t fit_ticket_ = 0;               // of the latest FitNow
-  std::uint64_t superseded_fit_ticket_ = 0;    // final fit of a run a new run replaced
-  bool unreached_warned_ = false;              // "controller not available" said once
+  bool fitting_ = false;                     // FitNow handed out, on_fit_finished not yet called
+  std::uint64_t fit_ticket_ = 0;             // of the latest FitNow
+  std::uint64_t superseded_fit_ticket_ = 0;  // final fit of a run a new run replaced
+  bool unreached_warned_ = false;            // "controller not available" said once
   std::uint64_t commands_in_run_ = 0;
-  std::uint64_t run_generation_ = 0;           // bumped by reset()
+  std::uint64_t run_generation_ = 0;  // bumped by reset()
   bool have_result_ = false;
   std::string fit_error_;
   bool restored_ = false;
   bool resume_pending_ = false;  // restored mid-protocol: rewind at the first command or DONE
   double resume_deadline_s_ = std::numeric_limits<double>::quiet_NaN();
-  bool restore_done_ = false;    // the checkpoint says DONE: fit at the first tick
+  bool restore_done_ = false;  // the checkpoint says DONE: fit at the first tick
   std::string controller_state_;
   bool controller_restarted_ = false;
   std::string fault_;             // the run was aborted by a watchdog: why

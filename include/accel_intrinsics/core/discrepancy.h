@@ -55,15 +55,15 @@ struct AnalysisOptions {
   // average (and fail a check on 200 runs half the time), so the default spends half of it:
   // P(more than 10 of 200 effect-free runs name anything) is then about 1 %.
   double alpha = 0.025;
-  int max_effects = 4;                      // stop after naming this many
-  int monte_carlo_draws = 10000;            // draws for the max-T calibration of each step
-  std::uint64_t seed = 20261121;            // of the Monte Carlo calibration (reproducible)
-  double ambiguity_correlation = 0.9;       // |corr| of score directions that counts as ambiguous
-  double identifiability_floor = 1e-6;      // |b_perp|^2/|b|^2 below this: absorbed by the base
-  int refit_top = 3;                        // significant candidates refit to pick the best
-  int harmonics = 4;                        // localization: harmonics 0..harmonics of the angle
-  int time_bins = 6;                        // localization: equal time bins over the run
-  double detection_power = 0.9;             // for the reported detection thresholds
+  int max_effects = 4;                  // stop after naming this many
+  int monte_carlo_draws = 10000;        // draws for the max-T calibration of each step
+  std::uint64_t seed = 20261121;        // of the Monte Carlo calibration (reproducible)
+  double ambiguity_correlation = 0.9;   // |corr| of score directions that counts as ambiguous
+  double identifiability_floor = 1e-6;  // |b_perp|^2/|b|^2 below this: absorbed by the base
+  int refit_top = 3;                    // significant candidates refit to pick the best
+  int harmonics = 4;                    // localization: harmonics 0..harmonics of the angle
+  int time_bins = 6;                    // localization: equal time bins over the run
+  double detection_power = 0.9;         // for the reported detection thresholds
   // Effects known to be present: always fitted, never screened (e.g. from an earlier analysis).
   std::vector<Effect> base_effects;
   // Candidates to screen; empty = every effect the table can reveal (default_candidates()).
@@ -88,9 +88,9 @@ struct GapSummary {
   double chi2 = 0.0;
   int dof = 0;
   double reduced_chi2 = 0.0;
-  double rms = 0.0;       // RMS of the unnormalized residuals, m/s^2
-  double p_value = 1.0;   // P(chi2(dof) >= chi2)
-  double band99_low = 0.0;   // 99 % band of the reduced chi-square under noise alone
+  double rms = 0.0;         // RMS of the unnormalized residuals, m/s^2
+  double p_value = 1.0;     // P(chi2(dof) >= chi2)
+  double band99_low = 0.0;  // 99 % band of the reduced chi-square under noise alone
   double band99_high = 0.0;
   bool consistent_with_noise = true;  // reduced chi2 inside the band
 };
@@ -100,8 +100,8 @@ struct CellGap {
   int phase = 0;          // x, y, z
   int accelerometer = 0;  // u, v, w
   int n = 0;
-  double chi2 = 0.0;      // sum of normalized residuals squared
-  double rms = 0.0;       // m/s^2
+  double chi2 = 0.0;  // sum of normalized residuals squared
+  double rms = 0.0;   // m/s^2
   // Normalized residual power at harmonic k of the angle (k = 0..harmonics): explained sum of
   // squares of z ~ a cos(k alpha) + b sin(k alpha); ~chi2(2) under noise (chi2(1) for k = 0).
   // The base fit absorbs part of harmonics 0 and 1: summed over the 9 cells, noise gives about
@@ -112,14 +112,14 @@ struct CellGap {
 struct TimeBinGap {
   double t_begin_s = 0.0;
   double t_end_s = 0.0;
-  int n = 0;              // residuals (dwells x 3)
+  int n = 0;  // residuals (dwells x 3)
   double chi2 = 0.0;
   double rms = 0.0;
 };
 
 struct Gap {
   GapSummary summary;
-  std::vector<CellGap> cells;          // 9 cells, phase-major
+  std::vector<CellGap> cells;  // 9 cells, phase-major
   std::vector<TimeBinGap> time_bins;
   std::array<double, 3> trend_z{{0, 0, 0}};  // per accelerometer: t-statistic of z vs time
 };
@@ -136,32 +136,32 @@ Gap compute_gap(const PositionTable& table, const FitResult& fit, int harmonics 
 
 // One candidate at one screening step.
 struct CandidateScore {
-  Effect effect;                 // value = one-step (linearized) estimate
+  Effect effect;  // value = one-step (linearized) estimate
   bool identifiable = true;
-  double information_ratio = 0;  // |b_perp|^2 / |b|^2
-  double score_chi2 = 0;         // T, ~chi2(1) under no effect
-  double estimate_std = 0;       // 1 / |b_perp| (linearized, known sigma)
-  double p_raw = 1;              // P(chi2(1) >= T)
-  double p_holm = 1;             // Holm-adjusted over the identifiable candidates
-  double p_adjusted = 1;         // step-down max-T (Monte Carlo), the family-wise p-value
+  double information_ratio = 0;    // |b_perp|^2 / |b|^2
+  double score_chi2 = 0;           // T, ~chi2(1) under no effect
+  double estimate_std = 0;         // 1 / |b_perp| (linearized, known sigma)
+  double p_raw = 1;                // P(chi2(1) >= T)
+  double p_holm = 1;               // Holm-adjusted over the identifiable candidates
+  double p_adjusted = 1;           // step-down max-T (Monte Carlo), the family-wise p-value
   double detection_threshold = 0;  // |value| named with probability detection_power (theory)
-  double delta_chi2 = 0;         // from the nonlinear refit, when one was made (else 0)
+  double delta_chi2 = 0;           // from the nonlinear refit, when one was made (else 0)
   bool refit = false;
 };
 
 struct ScreeningStep {
-  std::string model;                     // model label the step started from
-  GapSummary gap;                        // of that model
+  std::string model;                       // model label the step started from
+  GapSummary gap;                          // of that model
   std::vector<CandidateScore> candidates;  // sorted by score, strongest first
-  double critical_chi2 = 0;              // max-T critical value of the first step-down stage
-  std::string chosen;                    // label of the effect added, empty if none
+  double critical_chi2 = 0;                // max-T critical value of the first step-down stage
+  std::string chosen;                      // label of the effect added, empty if none
 };
 
 struct NamedEffect {
-  Effect effect;          // value from the final fit
-  double std = 0;         // standard uncertainty from the final fit
-  double p_value = 1;     // family-wise (step-down max-T) p-value at the step that named it
-  double p_raw = 1;       // single-test p-value of its score statistic at that step
+  Effect effect;       // value from the final fit
+  double std = 0;      // standard uncertainty from the final fit
+  double p_value = 1;  // family-wise (step-down max-T) p-value at the step that named it
+  double p_raw = 1;    // single-test p-value of its score statistic at that step
   double score_chi2 = 0;
   double delta_chi2 = 0;  // chi2 drop of the refit that added it
   int step = 0;
@@ -198,7 +198,8 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
 // Its documents (the analysis JSON, the text report, the residual CSV) are written by the io
 // library: io/analysis_report.h, io/residuals_csv.h.
 
-// timing_lag needs raw streams, not dwell means: see estimate_timing_lag() in raw_stream_analysis.h.
+// timing_lag needs raw streams, not dwell means: see estimate_timing_lag() in
+// raw_stream_analysis.h.
 
 // Theoretical detection threshold of a single chi2(1) test with critical value `critical_chi2`:
 // the non-centrality lambda at which the test rejects with probability `power` (Boost.Math

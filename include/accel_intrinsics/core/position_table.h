@@ -1,5 +1,6 @@
 // Dwell means: the streaming accumulator, the position table and its CSV form
-// (DESIGN.md section 2: phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w).
+// (DESIGN.md section 2:
+// phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w).
 #pragma once
 
 #include <Eigen/Core>

@@ -80,16 +80,16 @@ struct TimingLagEstimateOptions {
   // is ~1e-9 of it; h is far below the sample period, so only a sample within h of a move's
   // start or end (where the acceleration jumps) sees an O(h) error, of a derivative that is ~0.
   double derivative_step_s = 1e-4;
-  int max_iterations = 30;  // Gauss-Newton steps (with step halving)
-  double alpha = 0.05;      // `detected` when p_value <= alpha
+  int max_iterations = 30;       // Gauss-Newton steps (with step halving)
+  double alpha = 0.05;           // `detected` when p_value <= alpha
   double detection_power = 0.9;  // for detection_threshold_s
 };
 
 struct TimingLagEstimate {
   bool ok = false;  // enough move samples, a finite estimate inside the bounds; else see `message`
-  std::string message;     // one line: the summary, or why the estimate is not available
-  double lag_s = 0.0;      // IMU stamps late by lag_s (negative: early), the WLS estimate
-  double std_s = 0.0;      // standard uncertainty (see below)
+  std::string message;  // one line: the summary, or why the estimate is not available
+  double lag_s = 0.0;   // IMU stamps late by lag_s (negative: early), the WLS estimate
+  double std_s = 0.0;   // standard uncertainty (see below)
   // Likelihood ratio of lag = lag_s against lag = 0: chi2(0) - chi2(lag_s) over the move samples,
   // corrected for the uncertainty of the base fit (see `base_fit_leak`); ~chi2(1) without a lag.
   double lr_chi2 = 0.0;
@@ -98,8 +98,8 @@ struct TimingLagEstimate {
   bool detected = false;    // ok && p_value <= alpha
   // |lag| the test at `alpha` detects with probability `detection_power` (normal theory).
   double detection_threshold_s = 0.0;
-  double chi2 = 0.0;           // of the move samples at lag_s (normalized by sample_sigma)
-  double reduced_chi2 = 0.0;   // chi2 / (3 samples_used - 1)
+  double chi2 = 0.0;          // of the move samples at lag_s (normalized by sample_sigma)
+  double reduced_chi2 = 0.0;  // chi2 / (3 samples_used - 1)
   // Relative variance added by the base fit's covariance: var = (1 + base_fit_leak) / J^T W J.
   double base_fit_leak = 0.0;
   std::size_t samples_total = 0;  // samples given
@@ -107,10 +107,10 @@ struct TimingLagEstimate {
   std::size_t moves_used = 0;     // moves within a phase with a non-zero travel
   int iterations = 0;
   bool converged = false;
-  bool at_bound = false;           // the estimate hit +-max_abs_lag_s (then ok = false)
+  bool at_bound = false;              // the estimate hit +-max_abs_lag_s (then ok = false)
   bool sigma_from_residuals = false;  // no usable sample_sigma: unit weights, scale from residuals
   Eigen::Vector3d sample_sigma = Eigen::Vector3d::Zero();  // per accelerometer, m/s^2
-  double time_origin_s = 0.0;     // absolute stamp of t0 used (drift term and schedule)
+  double time_origin_s = 0.0;  // absolute stamp of t0 used (drift term and schedule)
 
   // The result as an effect of the vocabulary: timing_lag[all] with value lag_s.
   Effect effect() const;
@@ -167,10 +167,10 @@ TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
                                       const Eigen::Vector3d& sample_sigma,
                                       const TimingLagEstimateOptions& options = {});
 
-// Convenience for calibrate() (core/calibrate.h): t0 = effective_time_origin(table), the origin fit() used
-// for the drift term (the first command when the table came from the assembler; the first
-// command of `commands` for an empty table), sample_sigma = pooled_sample_std(table), base_fit =
-// the fit of that table (e.g. fit(table) or AnalysisResult::after_fit).
+// Convenience for calibrate() (core/calibrate.h): t0 = effective_time_origin(table), the origin
+// fit() used for the drift term (the first command when the table came from the assembler; the
+// first command of `commands` for an empty table), sample_sigma = pooled_sample_std(table),
+// base_fit = the fit of that table (e.g. fit(table) or AnalysisResult::after_fit).
 TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
                                       const std::vector<ImuSample>& samples,
                                       const PositionTable& table, const FitResult& base_fit,

@@ -121,7 +121,7 @@ class CalibrationNode {
   ros::Timer timer_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
 
-  IntrinsicResult result_;                   // the latest certificate
+  IntrinsicResult result_;            // the latest certificate
   std::uint64_t resets_ = 0;          // a reset discards analyses started before it
   std::uint64_t fits_published_ = 0;  // ... and so does a newer fit
   bool shutting_down_ = false;        // the destructor runs: fits are discarded

@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/AbortRun.h"
+#include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/ResumeAt.h"
 #include "accel_intrinsics/core/protocol.h"
 #include "accel_intrinsics/drivers/gimbal_driver.h"
