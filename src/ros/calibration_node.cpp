@@ -18,40 +18,6 @@
 
 namespace accel_intrinsics {
 
-namespace {
-
-diagnostic_msgs::KeyValue kv(const std::string& key, const std::string& value) {
-  diagnostic_msgs::KeyValue out;
-  out.key = key;
-  out.value = value;
-  return out;
-}
-
-// The calibration/status "state" values (scripts/supervise and the rostests read them).
-const char* status_word(core::RunState state) {
-  switch (state) {
-    case core::RunState::Idle: return "WAITING";
-    case core::RunState::Running:
-    case core::RunState::Dwelling: return "COLLECTING";
-    case core::RunState::WaitingForResume: return "RESUMING";
-    case core::RunState::Fitting: return "FITTING";
-    case core::RunState::Done: return "RESULT";
-    case core::RunState::FitFailed: return "FAILED";
-    case core::RunState::Aborted: return "ABORTED";
-  }
-  return "?";
-}
-
-// Malformed commands are refused before they reach the run (step == steps is the closing
-// position at 2 pi, ProtocolOptions::closing_position).
-bool well_formed(const GimbalCommand& msg) {
-  return msg.phase <= GimbalCommand::PHASE_Z && msg.state <= GimbalCommand::DONE &&
-         std::isfinite(msg.angle) && core::step_in_protocol(msg.step, msg.steps) &&
-         !msg.header.stamp.isZero();
-}
-
-}  // namespace
-
 CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
                                  const CalibrationOptions& options)
     : nh_(nh),
@@ -132,7 +98,7 @@ CalibrationNode::~CalibrationNode() {
 
 void CalibrationNode::handle_command(const GimbalCommand& msg) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
-  if (!well_formed(msg)) {
+  if (!is_well_formed(msg)) {
     run_.note_rejected_command();
     ROS_WARN_THROTTLE(5.0,
                       "calibration: rejected a malformed gimbal command (phase %u state %u step "
@@ -451,39 +417,9 @@ void CalibrationNode::publish_status(const ros::Time& now) {
   last_status_ = now;
   const core::RunStatus st = run_.status(now.toSec());
   last_state_ = st.state;
-  const core::AssemblerCounters& c = st.counters;
-  diagnostic_msgs::DiagnosticStatus msg;
-  msg.name = nh_.resolveName("calibration");
-  msg.hardware_id = "accel_intrinsics";
-  msg.level = st.fit_error.empty() && st.state != core::RunState::Aborted
-                  ? diagnostic_msgs::DiagnosticStatus::OK
-                  : diagnostic_msgs::DiagnosticStatus::ERROR;
-  msg.message = run_.has_result() ? "result available" : run_.missing_message();
-  msg.values.push_back(kv("state", status_word(st.state)));
-  msg.values.push_back(kv("run_state", core::run_state_name(st.state)));
-  for (core::Phase p : core::kPhases) {
-    msg.values.push_back(kv(std::string("dwells_") + core::phase_name(p),
-                            std::to_string(st.dwells_per_phase[core::index(p)])));
-  }
-  msg.values.push_back(kv("steps", std::to_string(st.steps)));
-  msg.values.push_back(kv("samples_used", std::to_string(c.samples_used)));
-  msg.values.push_back(kv("dropped_outside_dwell", std::to_string(c.dropped_outside_dwell)));
-  msg.values.push_back(kv("dropped_settle_discard", std::to_string(c.dropped_settle_discard)));
-  msg.values.push_back(kv("dropped_non_finite", std::to_string(c.dropped_non_finite)));
-  msg.values.push_back(kv("dropped_backwards", std::to_string(c.dropped_backwards)));
-  msg.values.push_back(kv("dropped_late", std::to_string(c.dropped_late)));
-  msg.values.push_back(kv("commands", std::to_string(c.commands)));
-  msg.values.push_back(kv("commands_out_of_order", std::to_string(c.commands_out_of_order)));
-  msg.values.push_back(kv("commands_rejected", std::to_string(st.commands_rejected)));
-  msg.values.push_back(kv("last_warning", c.last_warning));
-  msg.values.push_back(kv("fault", st.fault));
-  msg.values.push_back(kv("last_fault", st.last_fault));
-  msg.values.push_back(kv("retries", std::to_string(st.retries)));
-  msg.values.push_back(kv("dwells_discarded", std::to_string(st.dwells_discarded)));
-  msg.values.push_back(kv("restored", st.restored ? "true" : "false"));
-  msg.values.push_back(kv("model", run_.has_result() ? result_.model : ""));
-  msg.values.push_back(kv("stamp", std::to_string(now.toSec())));
-  status_pub_.publish(msg);
+  status_pub_.publish(to_status_msg(
+      st, run_.has_result() ? "result available" : run_.missing_message(),
+      run_.has_result() ? result_.model : "", now.toSec(), nh_.resolveName("calibration")));
 }
 
 void CalibrationNode::diagnose_imu(diagnostic_updater::DiagnosticStatusWrapper& status) {

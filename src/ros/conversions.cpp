@@ -1,7 +1,10 @@
 // Conversions between ROS messages and the ROS-free core types (conversions.h).
 #include "accel_intrinsics/ros/conversions.h"
 
+#include <diagnostic_msgs/KeyValue.h>
+
 #include <algorithm>
+#include <cmath>
 
 namespace accel_intrinsics {
 
@@ -9,12 +12,9 @@ namespace {
 
 core::Phase phase_from_msg(std::uint8_t phase) {
   switch (phase) {
-    case GimbalCommand::PHASE_X:
-      return core::Phase::X;
-    case GimbalCommand::PHASE_Y:
-      return core::Phase::Y;
-    default:
-      return core::Phase::Z;
+    case GimbalCommand::PHASE_X: return core::Phase::X;
+    case GimbalCommand::PHASE_Y: return core::Phase::Y;
+    default: return core::Phase::Z;
   }
 }
 
@@ -36,15 +36,9 @@ core::GimbalEvent to_core(const GimbalCommand& msg) {
   event.steps = msg.steps;
   event.angle_rad = msg.angle;
   switch (msg.state) {
-    case GimbalCommand::SETTLED:
-      event.state = core::GimbalState::Settled;
-      break;
-    case GimbalCommand::DONE:
-      event.state = core::GimbalState::Done;
-      break;
-    default:
-      event.state = core::GimbalState::Moving;
-      break;
+    case GimbalCommand::SETTLED: event.state = core::GimbalState::Settled; break;
+    case GimbalCommand::DONE: event.state = core::GimbalState::Done; break;
+    default: event.state = core::GimbalState::Moving; break;
   }
   return event;
 }
@@ -119,6 +113,83 @@ IntrinsicResult to_msg(const core::FitResult& result) {
     msg.effect_values.push_back(result.effects[i].value);
     msg.effect_std.push_back(i < result.effects_std.size() ? result.effects_std[i] : 0.0);
   }
+  return msg;
+}
+
+namespace {
+
+diagnostic_msgs::KeyValue kv(const std::string& key, const std::string& value) {
+  diagnostic_msgs::KeyValue out;
+  out.key = key;
+  out.value = value;
+  return out;
+}
+
+// The calibration/status "state" values (scripts/supervise and the rostests read them).
+const char* status_word(core::RunState state) {
+  switch (state) {
+    case core::RunState::Idle: return "WAITING";
+    case core::RunState::Running:
+    case core::RunState::Dwelling: return "COLLECTING";
+    case core::RunState::WaitingForResume: return "RESUMING";
+    case core::RunState::Fitting: return "FITTING";
+    case core::RunState::Done: return "RESULT";
+    case core::RunState::FitFailed: return "FAILED";
+    case core::RunState::Aborted: return "ABORTED";
+  }
+  return "?";
+}
+
+// Malformed commands are refused before they reach the run (step == steps is the closing
+// position at 2 pi, ProtocolOptions::closing_position).
+bool is_well_formed_impl(const GimbalCommand& msg) {
+  return msg.phase <= GimbalCommand::PHASE_Z && msg.state <= GimbalCommand::DONE &&
+         std::isfinite(msg.angle) && core::step_in_protocol(msg.step, msg.steps) &&
+         !msg.header.stamp.isZero();
+}
+
+}  // namespace
+
+bool is_well_formed(const GimbalCommand& msg) {
+  return is_well_formed_impl(msg);
+}
+
+diagnostic_msgs::DiagnosticStatus to_status_msg(const core::RunStatus& st,
+                                                const std::string& message,
+                                                const std::string& model, double stamp_s,
+                                                const std::string& name) {
+  const core::AssemblerCounters& c = st.counters;
+  diagnostic_msgs::DiagnosticStatus msg;
+  msg.name = name;
+  msg.hardware_id = "accel_intrinsics";
+  msg.level = st.fit_error.empty() && st.state != core::RunState::Aborted
+                  ? diagnostic_msgs::DiagnosticStatus::OK
+                  : diagnostic_msgs::DiagnosticStatus::ERROR;
+  msg.message = message;
+  msg.values.push_back(kv("state", status_word(st.state)));
+  msg.values.push_back(kv("run_state", core::run_state_name(st.state)));
+  for (core::Phase p : core::kPhases) {
+    msg.values.push_back(kv(std::string("dwells_") + core::phase_name(p),
+                            std::to_string(st.dwells_per_phase[core::index(p)])));
+  }
+  msg.values.push_back(kv("steps", std::to_string(st.steps)));
+  msg.values.push_back(kv("samples_used", std::to_string(c.samples_used)));
+  msg.values.push_back(kv("dropped_outside_dwell", std::to_string(c.dropped_outside_dwell)));
+  msg.values.push_back(kv("dropped_settle_discard", std::to_string(c.dropped_settle_discard)));
+  msg.values.push_back(kv("dropped_non_finite", std::to_string(c.dropped_non_finite)));
+  msg.values.push_back(kv("dropped_backwards", std::to_string(c.dropped_backwards)));
+  msg.values.push_back(kv("dropped_late", std::to_string(c.dropped_late)));
+  msg.values.push_back(kv("commands", std::to_string(c.commands)));
+  msg.values.push_back(kv("commands_out_of_order", std::to_string(c.commands_out_of_order)));
+  msg.values.push_back(kv("commands_rejected", std::to_string(st.commands_rejected)));
+  msg.values.push_back(kv("last_warning", c.last_warning));
+  msg.values.push_back(kv("fault", st.fault));
+  msg.values.push_back(kv("last_fault", st.last_fault));
+  msg.values.push_back(kv("retries", std::to_string(st.retries)));
+  msg.values.push_back(kv("dwells_discarded", std::to_string(st.dwells_discarded)));
+  msg.values.push_back(kv("restored", st.restored ? "true" : "false"));
+  msg.values.push_back(kv("model", model));
+  msg.values.push_back(kv("stamp", std::to_string(stamp_s)));
   return msg;
 }
 

@@ -3,6 +3,8 @@
 
 #include <Eigen/LU>
 #include <cmath>
+#include <map>
+#include <string>
 
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/ros/conversions.h"
@@ -98,4 +100,51 @@ TEST(Conversions, IntrinsicResult) {
   EXPECT_DOUBLE_EQ(msg.cross_sensitivity[5], fit.cross_sensitivity(1, 2));
   EXPECT_EQ(msg.positions[2], 11u);
   EXPECT_DOUBLE_EQ(msg.reduced_chi2, 1.1);
+}
+
+TEST(Conversions, MalformedGimbalCommandsAreRefused) {
+  ai::GimbalCommand msg;
+  msg.header.stamp = ros::Time(10.0);
+  msg.phase = ai::GimbalCommand::PHASE_Y;
+  msg.state = ai::GimbalCommand::SETTLED;
+  msg.step = 3;
+  msg.steps = 4;
+  msg.angle = 1.0;
+  EXPECT_TRUE(ai::is_well_formed(msg));
+  ai::GimbalCommand bad = msg;
+  bad.phase = 3;
+  EXPECT_FALSE(ai::is_well_formed(bad));
+  bad = msg;
+  bad.angle = NAN;
+  EXPECT_FALSE(ai::is_well_formed(bad));
+  bad = msg;
+  bad.step = 5;  // beyond the closing position
+  EXPECT_FALSE(ai::is_well_formed(bad));
+  bad = msg;
+  bad.header.stamp = ros::Time();
+  EXPECT_FALSE(ai::is_well_formed(bad));
+}
+
+TEST(Conversions, StatusMessageCarriesTheRunState) {
+  core::RunStatus st;
+  st.state = core::RunState::Aborted;
+  st.fault = "IMU stream stopped";
+  st.retries = 2;
+  st.dwells_per_phase = {{4, 1, 0}};
+  const auto msg = ai::to_status_msg(st, "run aborted", "", 12.5, "/calibration");
+  EXPECT_EQ(msg.level, diagnostic_msgs::DiagnosticStatus::ERROR);
+  std::map<std::string, std::string> values;
+  for (const auto& kv : msg.values) values[kv.key] = kv.value;
+  EXPECT_EQ(values["state"], "ABORTED");
+  EXPECT_EQ(values["run_state"], "aborted");
+  EXPECT_EQ(values["fault"], "IMU stream stopped");
+  EXPECT_EQ(values["retries"], "2");
+  EXPECT_EQ(values["dwells_y"], "1");
+  st.state = core::RunState::Dwelling;
+  st.fault.clear();
+  const auto running = ai::to_status_msg(st, "collecting", "", 13.0, "/calibration");
+  EXPECT_EQ(running.level, diagnostic_msgs::DiagnosticStatus::OK);
+  for (const auto& kv : running.values) {
+    if (kv.key == "state") EXPECT_EQ(kv.value, "COLLECTING");
+  }
 }

@@ -1,12 +1,14 @@
 // Conversions between ROS messages and the ROS-free core types. The only place that knows both.
 #pragma once
 
+#include <diagnostic_msgs/DiagnosticStatus.h>
 #include <sensor_msgs/Imu.h>
 
 #include <string>
 
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/IntrinsicResult.h"
+#include "accel_intrinsics/core/calibration_run.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/fit.h"
 
@@ -23,5 +25,16 @@ sensor_msgs::Imu to_msg(const core::ImuSample& sample, const std::string& frame_
                         double variance_per_axis = 0.0);
 
 IntrinsicResult to_msg(const core::FitResult& result);
+
+// A gimbal command the calibration run may take: known phase and state, finite angle, step within
+// the protocol (step == steps is the closing position), non-zero stamp.
+bool is_well_formed(const GimbalCommand& msg);
+
+// calibration/status: the run's status as key/values; "state" is WAITING, COLLECTING, RESUMING,
+// FITTING, RESULT, FAILED or ABORTED (scripts/supervise and the rostests read it).
+diagnostic_msgs::DiagnosticStatus to_status_msg(const core::RunStatus& status,
+                                                const std::string& message,
+                                                const std::string& model, double stamp_s,
+                                                const std::string& name);
 
 }  // namespace accel_intrinsics
