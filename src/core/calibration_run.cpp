@@ -270,21 +270,28 @@ RunActions CalibrationRun::tick(double now_s) {
   return take_actions();
 }
 
+void CalibrationRun::ask_again(Pending kind, const ControllerRequest& request, double now_s) {
+  // The controller is not there (yet): ask again in a moment (unless a newer request replaced
+  // this one meanwhile).
+  if (!unreached_warned_) {
+    log(RunAction::Level::Warn, std::string("gimbal_controller/") +
+                                    (kind == Pending::Resume ? "resume" : "abort") +
+                                    " not available; retrying");
+    unreached_warned_ = true;
+  }
+  if (pending_ == Pending::None) {
+    pending_ = kind;
+    request_ = request;
+  }
+  request_after_s_ = now_s + options_.request_retry_s;
+}
+
 RunActions CalibrationRun::on_resume_reply(const ControllerRequest& request, bool reached,
                                            bool success, const std::string& message,
                                            double moving_stamp_s, double now_s) {
   if (request.run_generation != run_generation_) return take_actions();  // of a reset run
   if (!reached) {
-    // The controller is not there (yet): ask again in a moment.
-    if (!unreached_warned_) {
-      log(RunAction::Level::Warn, "gimbal_controller/resume not available; retrying");
-      unreached_warned_ = true;
-    }
-    if (pending_ == Pending::None) {
-      pending_ = Pending::Resume;
-      request_ = request;
-    }
-    request_after_s_ = now_s + options_.request_retry_s;
+    ask_again(Pending::Resume, request, now_s);
     return take_actions();
   }
   unreached_warned_ = false;
@@ -308,15 +315,7 @@ RunActions CalibrationRun::on_abort_reply(const ControllerRequest& request, bool
                                           const std::string& message, double now_s) {
   if (request.run_generation != run_generation_) return take_actions();  // of a reset run
   if (!reached) {
-    if (!unreached_warned_) {
-      log(RunAction::Level::Warn, "gimbal_controller/abort not available; retrying");
-      unreached_warned_ = true;
-    }
-    if (pending_ == Pending::None) {
-      pending_ = Pending::Abort;
-      request_ = request;
-    }
-    request_after_s_ = now_s + options_.request_retry_s;
+    ask_again(Pending::Abort, request, now_s);
     return take_actions();
   }
   unreached_warned_ = false;

@@ -60,6 +60,14 @@ class FakeStand {
     stream_ = kept;
   }
 
+  // The first pass keeps only `n` samples of the dwell in `interval`.
+  void keep_first_samples_of(std::pair<double, double> interval, int n) {
+    int kept = 0;
+    inject_first_pass([&](const ImuSample& s) {
+      return s.stamp_s >= interval.first && s.stamp_s < interval.second && ++kept > n;
+    });
+  }
+
   // The stamp interval of the dwell (phase, step) in the original timeline (first visit).
   std::pair<double, double> dwell_interval(Phase phase, std::uint32_t step) const {
     for (std::size_t i = 0; i < recording_.commands.size(); ++i) {
@@ -210,6 +218,14 @@ RunOptions options_for(std::uint32_t steps) {
   return o;
 }
 
+// N = 4, at least `min_samples` per dwell, a faulty position measured again.
+RunOptions retrying_options(std::uint32_t min_samples) {
+  RunOptions o = options_for(4);
+  o.min_samples_per_dwell = min_samples;
+  o.retry_on_fault = true;
+  return o;
+}
+
 // Every (phase, step) of an N-step one-way protocol exactly once, in protocol order.
 void expect_complete_table(const PositionTable& table, std::uint32_t steps) {
   ASSERT_EQ(table.rows.size(), 3 * steps);
@@ -252,14 +268,8 @@ TEST(CalibrationRun, CleanRunEndsWithOneFitOfEveryDwell) {
 TEST(CalibrationRun, TooFewSamplesAreMeasuredAgainOnRetry) {
   FakeStand stand;
   const auto bad = stand.dwell_interval(Phase::Y, 2);
-  int kept = 0;
-  stand.inject_first_pass([&](const ImuSample& s) {
-    return s.stamp_s >= bad.first && s.stamp_s < bad.second && ++kept > 5;
-  });
-  RunOptions o = options_for(4);
-  o.min_samples_per_dwell = 20;
-  o.retry_on_fault = true;
-  CalibrationRun run(o);
+  stand.keep_first_samples_of(bad, 5);
+  CalibrationRun run(retrying_options(20));
   stand.play(&run);
   ASSERT_EQ(stand.resumes_.size(), 1u);
   EXPECT_EQ(stand.resumes_[0].phase, Phase::Y);
@@ -371,10 +381,7 @@ TEST(CalibrationRun, RefusedResumeAbortsWithTheControllersWords) {
   const auto bad = stand.dwell_interval(Phase::X, 3);
   stand.inject_first_pass(
       [&](const ImuSample& s) { return s.stamp_s >= bad.first + 0.2 && s.stamp_s < bad.second; });
-  RunOptions o = options_for(4);
-  o.min_samples_per_dwell = 20;
-  o.retry_on_fault = true;
-  CalibrationRun run(o);
+  CalibrationRun run(retrying_options(20));
   stand.refuse_resume_ = true;
   stand.play(&run);
   EXPECT_EQ(run.state(), RunState::Aborted);
@@ -518,14 +525,8 @@ TEST(CalibrationRun, NewRunRightAfterDoneStillFitsThePreviousOne) {
 TEST(CalibrationRun, SecondRunAfterARunWithARetryStartsFresh) {
   FakeStand stand;
   const auto bad = stand.dwell_interval(Phase::Y, 0);
-  int kept = 0;
-  stand.inject_first_pass([&](const ImuSample& s) {
-    return s.stamp_s >= bad.first && s.stamp_s < bad.second && ++kept > 5;
-  });
-  RunOptions o = options_for(4);
-  o.min_samples_per_dwell = 20;
-  o.retry_on_fault = true;
-  CalibrationRun run(o);
+  stand.keep_first_samples_of(bad, 5);
+  CalibrationRun run(retrying_options(20));
   stand.play(&run);
   ASSERT_EQ(run.state(), RunState::Done);
   ASSERT_EQ(stand.resumes_.size(), 1u);

@@ -206,6 +206,7 @@ class CalibrationRun {
   void restart_assembler();
   void check_watchdogs(double now_s);
   void emit_fit();
+  void ask_again(Pending kind, const ControllerRequest& request, double now_s);
   void emit(RunAction::Kind kind);
   void warn_on_new_drops();
   bool in_blackout(double t_start_s, double t_end_s) const;
