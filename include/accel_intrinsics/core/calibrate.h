@@ -11,6 +11,7 @@
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/quality.h"
 #include "accel_intrinsics/core/raw_stream_analysis.h"
 
 namespace accel_intrinsics {
@@ -28,6 +29,7 @@ struct CalibrateOptions {
   AnalysisOptions analysis;  // its local_gravity is set from fit.local_gravity
   // Certificate = the analysis' refit when it named effects, else the base fit.
   bool certificate_refit = false;
+  QualityOptions quality;  // the gate on the certificate
 };
 
 struct CalibrationReport {
@@ -40,9 +42,10 @@ struct CalibrationReport {
   // When analyze and raw commands were given: estimate_timing_lag with the analysis' refit and
   // timing_lag_options_beside_screen() (its false-alarm budget beside the dwell screen).
   std::optional<TimingLagEstimate> timing_lag;
+  Quality quality;  // of the certificate (DESIGN.md section 5)
 };
 
-// Fit -> analysis -> timing lag. Throws FitError when the fit fails (the message says what is
+// Fit -> analysis -> timing lag -> quality gate. Throws FitError when the fit fails (the message says what is
 // missing; fit() may also throw std::invalid_argument for bad options). A failing analysis or
 // lag estimate does not throw: it leaves analysis_error and the base fit as the certificate.
 // `raw` may be null (a position table alone: no timing lag).
