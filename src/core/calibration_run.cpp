@@ -22,6 +22,7 @@ void add_counters(const AssemblerCounters& from, AssemblerCounters* to) {
   to->dropped_settle_discard += from.dropped_settle_discard;
   to->dropped_non_finite += from.dropped_non_finite;
   to->dropped_backwards += from.dropped_backwards;
+  to->duplicates += from.duplicates;
   to->dropped_late += from.dropped_late;
   to->commands += from.commands;
   to->commands_out_of_order += from.commands_out_of_order;

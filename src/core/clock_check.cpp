@@ -117,6 +117,15 @@ ClockCheckResult ClockCheck::result() const {
     return r;
   }
 
+  std::uint64_t samples = 0;
+  for (const auto& bin : bins_) samples += bin.second.n;
+  const double span_s = static_cast<double>(bins_.rbegin()->first - bins_.begin()->first + 1) * options_.bin_s;
+  if (static_cast<double>(samples) / span_s < options_.min_rate_hz) {
+    r.not_checked_why = "IMU rate below " + std::to_string(static_cast<int>(options_.min_rate_hz)) +
+                        " Hz: too sparse to see the moves";
+    return r;
+  }
+
   Binned b;
   b.bin_s = options_.bin_s;
   const std::int64_t k0 = bins_.begin()->first;
@@ -168,10 +177,17 @@ ClockCheckResult ClockCheck::result() const {
 
   const double pad = static_cast<double>(block) * options_.bin_s;
   // Share of the IMU motion inside the moves when IMU stamps = gimbal time + shift.
-  auto explained = [&](double shift) {
+  std::vector<double> durations;
+  for (const Move& m : moves) durations.push_back(m.end_s - m.start_s);
+  std::nth_element(durations.begin(), durations.begin() + durations.size() / 2, durations.end());
+  const double typical_move = durations[durations.size() / 2];
+  // Step moves (not remounts, whose motion has no particular profile).
+  auto is_step = [&](const Move& m) { return m.end_s - m.start_s <= 1.5 * typical_move; };
+  auto explained = [&](double shift, double pad, bool steps_only = false) {
     double in_moves = 0.0;
     double covered_until = -HUGE_VAL;  // padded moves may overlap: count each bin once
     for (const Move& m : moves) {
+      if (steps_only && !is_step(m)) continue;
       const double lo = std::max(m.start_s + shift - pad, covered_until);
       const double hi = m.end_s + shift + pad;
       in_moves += b.motion_between(lo, hi);
@@ -179,17 +195,13 @@ ClockCheckResult ClockCheck::result() const {
     }
     return in_moves / b.total_motion;
   };
-  // Step moves (not remounts): their motion profile is symmetric about the midpoint.
-  std::vector<double> durations;
-  for (const Move& m : moves) durations.push_back(m.end_s - m.start_s);
-  std::nth_element(durations.begin(), durations.begin() + durations.size() / 2, durations.end());
-  const double typical_move = durations[durations.size() / 2];
+  // Step moves' motion profile is symmetric about their midpoint.
   // Fine: shift + median(centroid of motion - midpoint of move), iterated.
   auto refine = [&](double shift) {
     for (int iteration = 0; iteration < 8; ++iteration) {
       std::vector<double> lags;
       for (const Move& m : moves) {
-        if (m.end_s - m.start_s > 1.5 * typical_move) continue;
+        if (!is_step(m)) continue;
         const std::size_t lo = b.boundary_at(m.start_s + shift - pad);
         const std::size_t hi = b.boundary_at(m.end_s + shift + pad);
         double weight = 0.0, moment = 0.0;
@@ -243,10 +255,10 @@ ClockCheckResult ClockCheck::result() const {
   std::vector<double> share(steps);
   double best = 0.0;
   for (std::size_t i = 0; i < steps; ++i) {
-    share[i] = explained(lo + static_cast<double>(i) * b.bin_s);
+    share[i] = explained(lo + static_cast<double>(i) * b.bin_s, pad);
     best = std::max(best, share[i]);
   }
-  r.explained_at_zero = explained(0.0);
+  r.explained_at_zero = explained(0.0, pad);
   if (best < options_.min_explained) {
     r.not_checked_why = "the IMU motion does not follow the gimbal's moves at any shift";
     return r;
@@ -272,9 +284,16 @@ ClockCheckResult ClockCheck::result() const {
       best_shift = shift;
     }
   }
-  r.explained_at_offset = explained(best_shift);
+  r.explained_at_offset = explained(best_shift, pad);
   r.offset_s = best_shift;
-  r.offset_found = std::abs(best_shift) >= options_.min_offset_s;
+  // The shift must also put clearly more motion inside the step moves themselves (unpadded), or
+  // be a sizeable part of a move: a centroid off the middle of moves that hold all the motion
+  // is no evidence of another clock (a gimbal that reports SETTLED late).
+  r.best_shift_s = best_shift;
+  r.gain = explained(best_shift, 0.0, true) - explained(0.0, 0.0, true);
+  r.offset_found = std::abs(best_shift) >= options_.min_offset_s &&
+                   (r.gain >= options_.min_gain ||
+                    std::abs(best_shift) >= options_.min_offset_of_move * typical_move);
   if (!r.offset_found) r.offset_s = 0.0;
   return r;
 }

@@ -63,11 +63,6 @@ void DwellAssembler::add_sample(const ImuSample& sample) {
     ++counters_.dropped_non_finite;
     return;
   }
-  if (sample.stamp_s <= last_sample_stamp_s_) {
-    ++counters_.dropped_backwards;
-    return;
-  }
-  last_sample_stamp_s_ = sample.stamp_s;
   if (sample.stamp_s < released_until_s_) {
     ++counters_.dropped_late;
     return;
@@ -105,6 +100,20 @@ void DwellAssembler::process(const Event& event) {
     if (observe_command_) observe_command_(event.command);
     process_command(event.command);
   } else {
+    // Released in stamp order, so a sample with the stamp of the previous one is a copy (the
+    // same values: a duplicated message, used once) or a conflict (a clock that went back).
+    if (event.sample.stamp_s == last_sample_stamp_s_) {
+      if (event.sample.outputs == last_sample_outputs_) {
+        ++counters_.duplicates;
+      } else {
+        ++counters_.dropped_backwards;
+      }
+      return;
+    }
+    if (event.sample.stamp_s > last_sample_stamp_s_) {
+      last_sample_stamp_s_ = event.sample.stamp_s;
+      last_sample_outputs_ = event.sample.outputs;
+    }
     if (observe_sample_) observe_sample_(event.sample);
     process_sample(event.sample);
   }

@@ -67,6 +67,7 @@ nlohmann::json counters_json(const core::AssemblerCounters& c) {
           {"dropped_settle_discard", c.dropped_settle_discard},
           {"dropped_non_finite", c.dropped_non_finite},
           {"dropped_backwards", c.dropped_backwards},
+          {"duplicates", c.duplicates},
           {"dropped_late", c.dropped_late}};
 }
 
@@ -91,8 +92,11 @@ nlohmann::json input_json(const InputDescription& in) {
       {"dropped_settle_discard", c.dropped_settle_discard},
       {"dropped_non_finite", c.dropped_non_finite},
       {"dropped_backwards", c.dropped_backwards},
+      {"duplicates", c.duplicates},
       {"dropped_late", c.dropped_late},
       {"commands_out_of_order", c.commands_out_of_order},
+      {"imu_time_offset_s", b.imu_time_offset_s},
+      {"files", b.files},
       {"done_seen", b.done_seen},
       {"time_origin_s", b.time_origin_s},
   };
@@ -266,6 +270,7 @@ nlohmann::json result_document(const core::CalibrationReport& report,
   nlohmann::json j = fit_json(report.certificate);
   j["certificate_model"] = report.certificate.model_label();
   j["certificate_policy"] = report.certificate_refit_policy ? "refit" : "base";
+  j["quality"] = {{"pass", report.quality.pass}, {"reasons", report.quality.reasons}};
   if (report.analysis) {
     // The analysis' keys beside the result's, never replacing one (local_gravity is the same).
     nlohmann::json extra = analysis_json(*report.analysis);

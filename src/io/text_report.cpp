@@ -85,6 +85,8 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
 void write_text_report(std::ostream& out, const core::CalibrationReport& report,
                        const ResultContext& context) {
   write_fit_report(out, report.certificate, context);
+  out << "  quality gate:  " << (report.quality.pass ? "passed" : "FAILED") << "\n";
+  for (const std::string& reason : report.quality.reasons) out << "    - " << reason << "\n";
   if (!report.analysis) return;
   out << "\n";
   write_analysis_report(out, *report.analysis);

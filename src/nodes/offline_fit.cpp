@@ -17,10 +17,16 @@ int main(int argc, char** argv) {
       "playback) or a CSV position table, and prints the intrinsic parameters with their "
       "standard uncertainties."};
   app.footer(
-      "Exit status: 0 success; 1 bad input or failed fit; 2 bad command line. Failures print one "
-      "line on stderr and write no output file.");
+      "Exit status: 0 success; 1 bad input (also IMU and gimbal on different clocks) or failed "
+      "fit; 2 bad command line; 3 the result fails the quality gate (reduced chi-square far "
+      "above its band, implausible responsivities or angles, starved dwells): the outputs are "
+      "written, with \"quality\": {\"pass\": false, \"reasons\": [...]}. Failures 1 and 2 "
+      "print one line on stderr and write no output file.");
   ai::OfflineFitArguments args;
-  app.add_option("--bag", args.bag, "recorded run (rosbag)");
+  app.add_option("--bag", args.bags,
+                 "recorded run (rosbag); repeat it, or name a directory, for a run split over "
+                 "several bags")
+      ->type_name("FILE|DIR");
   app.add_option("--csv", args.csv,
                  "position table: " + std::string(ai::core::kPositionTableHeader));
   auto* imu =
@@ -40,6 +46,13 @@ int main(int argc, char** argv) {
                                 "settle_discard_s")
                      ->type_name("SECONDS")
                      ->capture_default_str();
+  auto* offset =
+      app.add_option("--imu-time-offset", args.imu_time_offset_s,
+                     "bag only: add SECONDS to every IMU stamp (an IMU clock offset from the "
+                     "gimbal's; the clock check names the value)")
+          ->type_name("SECONDS");
+  app.add_flag("--skip-clock-check", args.skip_clock_check,
+               "bag only: do not check that IMU and gimbal stamps share one clock");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -54,6 +67,7 @@ int main(int argc, char** argv) {
   args.imu_topic_given = imu->count() > 0;
   args.command_topic_given = command->count() > 0;
   args.settle_discard_given = settle->count() > 0;
+  args.imu_time_offset_given = offset->count() > 0;
 
   // rosbag and cpp_common log parse errors through console_bridge; the exception they throw
   // carries the same news and becomes our one line on stderr.

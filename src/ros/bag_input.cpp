@@ -1,6 +1,8 @@
 // The feed loop of bag reading (bag_input.h): messages of the run's topics to the assembler.
 #include "accel_intrinsics/ros/bag_input.h"
 
+#include <filesystem>
+
 #include <ros/serialization.h>
 #include <rosbag/exceptions.h>
 #include <rosbag/view.h>
@@ -179,7 +181,8 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
   try {
     const std::vector<BagTopic> topics = scanner ? scanner->topics() : list_topics(bag);
     const RunTopics run_topics =
-        resolve_run_topics(options.imu_topic, options.command_topic, topics);
+        resolve_run_topics(options.imu_topic, options.command_topic, topics, options.imu_by_type);
+    stats.topic_note = run_topics.note;
     stats.imu_topic = run_topics.imu;
     stats.command_topic = run_topics.command;
 
@@ -219,9 +222,10 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
     auto on_imu = [&](const ros::Time& bag_time, const detail::ImuAccelerationOnly& imu) {
       on_time(bag_time);
       core::ImuSample sample;
-      sample.stamp_s = imu.stamp.toSec();
+      sample.stamp_s = imu.stamp.toSec() + options.imu_time_offset_s;
       sample.outputs = Eigen::Vector3d(imu.x, imu.y, imu.z);
       assembler.add_sample(sample);
+      if (options.clock_check) options.clock_check->add_sample(sample);
       if (options.raw_samples) options.raw_samples->push_back(sample);
       ++stats.imu_messages;
       progress.update(++done);
@@ -242,6 +246,7 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
       stats.steps_announced[core::index(event.phase)] = event.steps;
       if (event.state == core::GimbalState::Done) stats.done_seen = true;
       assembler.add_command(event);
+      if (options.clock_check) options.clock_check->add_command(event);
       if (options.raw_commands) options.raw_commands->push_back(event);
     };
 
@@ -285,7 +290,7 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
         }
       }
     }
-    assembler.flush();
+    if (options.flush_at_end) assembler.flush();
     progress.finish(done);
     stats.read_wall_s = progress.seconds_since_start();
   } catch (const BagInputError&) {
@@ -310,6 +315,82 @@ BagRun read_bag(const std::string& path, const BagInputOptions& options) {
   core::DwellAssembler assembler(options.assembler);
   BagRun run;
   run.stats = feed_bag(path, options, assembler);
+  run.table = assembler.table();
+  return run;
+}
+
+std::vector<std::string> expand_bag_paths(const std::vector<std::string>& paths) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> bags;
+  for (const std::string& p : paths) {
+    std::error_code ec;
+    if (!fs::is_directory(p, ec)) {
+      bags.push_back(p);  // feed_bag names a missing or unreadable file
+      continue;
+    }
+    std::vector<std::string> found;
+    for (const fs::directory_entry& e : fs::directory_iterator(p, ec)) {
+      if (e.is_regular_file(ec) && e.path().extension() == ".bag") found.push_back(e.path().string());
+    }
+    if (ec) throw BagInputError("cannot list directory '" + p + "': " + ec.message());
+    if (found.empty()) throw BagInputError("directory '" + p + "' holds no *.bag files");
+    std::sort(found.begin(), found.end());
+    bags.insert(bags.end(), found.begin(), found.end());
+  }
+  if (bags.empty()) throw BagInputError("no bag given");
+  return bags;
+}
+
+BagRun read_bags(const std::vector<std::string>& paths, const BagInputOptions& options) {
+  std::vector<std::string> bags = expand_bag_paths(paths);
+  if (bags.size() == 1) return read_bag(bags.front(), options);
+  // In the order of their first message (split bags' names do not sort numerically).
+  std::vector<std::pair<double, std::string>> ordered;
+  for (const std::string& path : bags) {
+    check_readable_file(path);
+    rosbag::Bag bag;
+    open_bag(bag, path);
+    rosbag::View view(bag);
+    ordered.emplace_back(view.size() > 0 ? view.getBeginTime().toSec() : 0.0, path);
+  }
+  std::stable_sort(ordered.begin(), ordered.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+
+  core::DwellAssembler assembler(options.assembler);
+  BagInputOptions each = options;
+  each.flush_at_end = false;
+  BagRun run;
+  BagInputStats& total = run.stats;
+  for (std::size_t i = 0; i < ordered.size(); ++i) {
+    const BagInputStats st = feed_bag(ordered[i].second, each, assembler);
+    if (i == 0) {
+      total = st;
+      total.path = ordered[i].second;
+    } else {
+      if (st.imu_topic != total.imu_topic || st.command_topic != total.command_topic) {
+        throw BagInputError("bag '" + ordered[i].second + "' holds the run on " + st.imu_topic +
+                            " and " + st.command_topic + ", bag '" + total.path + "' on " +
+                            total.imu_topic + " and " + total.command_topic);
+      }
+      total.path += ", " + ordered[i].second;
+      total.imu_messages += st.imu_messages;
+      total.command_messages += st.command_messages;
+      total.invalid_commands += st.invalid_commands;
+      total.bag_start_s = std::min(total.bag_start_s, st.bag_start_s);
+      total.bag_end_s = std::max(total.bag_end_s, st.bag_end_s);
+      total.read_wall_s += st.read_wall_s;
+      total.done_seen = total.done_seen || st.done_seen;
+      for (int p = 0; p < 3; ++p) {
+        if (st.steps_announced[p] > 0) total.steps_announced[p] = st.steps_announced[p];
+      }
+      if (total.reader != st.reader) total.reader = "chunk scan and rosbag::View";
+    }
+  }
+  assembler.flush();
+  total.files = static_cast<std::uint32_t>(ordered.size());
+  total.counters = assembler.counters();
+  total.open_dwell = assembler.current_dwell(&total.open_dwell_phase, &total.open_dwell_step,
+                                             &total.open_dwell_samples);
   run.table = assembler.table();
   return run;
 }

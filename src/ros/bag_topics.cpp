@@ -117,7 +117,7 @@ std::string topic_namespace(const std::string& resolved, const std::string& requ
 }
 
 RunTopics resolve_run_topics(const std::string& imu_requested, const std::string& command_requested,
-                             const std::vector<BagTopic>& topics) {
+                             const std::vector<BagTopic>& topics, bool imu_by_type) {
   RunTopics run;
   // Resolve the IMU first; its namespace disambiguates the command topic, and vice versa.
   try {
@@ -125,14 +125,28 @@ RunTopics resolve_run_topics(const std::string& imu_requested, const std::string
   } catch (const BagInputError& imu_error) {
     // Several namespaced IMU topics: retry in the namespace of the command topic when that one
     // is unambiguous; otherwise report the IMU topic's own problem.
+    std::vector<std::string> imu_topics;
+    for (const BagTopic& t : topics) {
+      if (t.datatype == kImuType) imu_topics.push_back(t.name);
+    }
     std::string command;
     try {
       command = resolve_topic(command_requested, topics, kCommandType);
     } catch (const BagInputError&) {
       throw imu_error;
     }
-    run.imu = resolve_topic(imu_requested, topics, kImuType,
-                            namespace_of(command, names::kGimbalCommandTopic, command_requested));
+    try {
+      run.imu = resolve_topic(imu_requested, topics, kImuType,
+                              namespace_of(command, names::kGimbalCommandTopic, command_requested));
+    } catch (const BagInputError&) {
+      // The driver published under another name: the only IMU topic of the bag is the one.
+      if (!imu_by_type || imu_topics.size() != 1) throw;
+      run.imu = imu_topics.front();
+      run.note = "no IMU topic '" + imu_requested + "'; using " + run.imu +
+                 ", the only sensor_msgs/Imu topic of the bag (--imu-topic names another)";
+      run.command = command;
+      return run;
+    }
   }
   const std::string imu_ns = namespace_of(run.imu, names::kImuTopic, imu_requested);
   run.command = resolve_topic(command_requested, topics, kCommandType, imu_ns);

@@ -447,6 +447,7 @@ void CalibrationNode::diagnose_imu(diagnostic_updater::DiagnosticStatusWrapper& 
   status.add("dropped_settle_discard", c.dropped_settle_discard);
   status.add("dropped_non_finite", c.dropped_non_finite);
   status.add("dropped_backwards", c.dropped_backwards);
+  status.add("duplicates", c.duplicates);
   status.add("dropped_late", c.dropped_late);
   status.add("newest_stamp_s",
              std::isfinite(st.newest_sample_stamp_s) ? st.newest_sample_stamp_s : 0.0);

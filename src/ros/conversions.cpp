@@ -178,6 +178,7 @@ diagnostic_msgs::DiagnosticStatus to_status_msg(const core::RunStatus& st,
   msg.values.push_back(kv("dropped_settle_discard", std::to_string(c.dropped_settle_discard)));
   msg.values.push_back(kv("dropped_non_finite", std::to_string(c.dropped_non_finite)));
   msg.values.push_back(kv("dropped_backwards", std::to_string(c.dropped_backwards)));
+  msg.values.push_back(kv("duplicates", std::to_string(c.duplicates)));
   msg.values.push_back(kv("dropped_late", std::to_string(c.dropped_late)));
   msg.values.push_back(kv("commands", std::to_string(c.commands)));
   msg.values.push_back(kv("commands_out_of_order", std::to_string(c.commands_out_of_order)));

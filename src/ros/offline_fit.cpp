@@ -81,6 +81,16 @@ void check_bag_run(const BagInputStats& st, const core::PositionTable& table, In
                          std::to_string(announced) + " positions have a dwell");
     }
   }
+  if (c.duplicates > 0) {
+    warnings.push_back(std::to_string(c.duplicates) +
+                       " duplicated IMU messages (same stamp and values) used once");
+  }
+  if (c.dropped_backwards > 0) {
+    warnings.push_back(std::to_string(c.dropped_backwards) +
+                       " IMU samples repeat an earlier stamp with other values (device clock went "
+                       "back?) and were dropped");
+  }
+  if (!st.topic_note.empty()) warnings.push_back(st.topic_note);
   if (c.dropped_non_finite > 0) {
     warnings.push_back(std::to_string(c.dropped_non_finite) +
                        " IMU samples with non-finite values dropped");
@@ -107,7 +117,13 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
   options.command_topic = args.command_topic;
   options.assembler.settle_discard_s = args.settle_discard_s;
   options.progress_stream = &err;
-  options.progress_label = std::string(kOfflineFitProgram) + ": reading " + args.bag;
+  options.imu_time_offset_s = args.imu_time_offset_s;
+  options.imu_by_type = !args.imu_topic_given;
+  core::ClockCheck clock_check;
+  if (!args.skip_clock_check) options.clock_check = &clock_check;
+  std::string bags;
+  for (const std::string& b : args.bags) bags += (bags.empty() ? "" : ", ") + b;
+  options.progress_label = std::string(kOfflineFitProgram) + ": reading " + bags;
 
   Input input;
   if (args.analyze) {
@@ -116,17 +132,33 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
   }
   BagRun run;
   try {
-    run = read_bag(args.bag, options);
+    run = read_bags(args.bags, options);
   } catch (const BagInputError& e) {
     throw Failure{kOfflineFitBadInput, as_one_line(e.what())};
   }
   const BagInputStats& st = run.stats;
   if (st.command_messages == 0) {
     throw Failure{kOfflineFitBadInput,
-                  "no gimbal commands on '" + st.command_topic + "' in " + args.bag};
+                  "no gimbal commands on '" + st.command_topic + "' in " + st.path};
   }
   if (st.imu_messages == 0) {
-    throw Failure{kOfflineFitBadInput, "no IMU messages on '" + st.imu_topic + "' in " + args.bag};
+    throw Failure{kOfflineFitBadInput, "no IMU messages on '" + st.imu_topic + "' in " + st.path};
+  }
+  if (!st.topic_note.empty()) err << kOfflineFitProgram << ": note: " << st.topic_note << std::endl;
+  // One clock, before anything is fitted: dwells on a shifted clock are garbage.
+  if (options.clock_check) {
+    const core::ClockCheckResult clock = clock_check.result();
+    if (clock.offset_found) {
+      std::ostringstream fix;
+      fix << "--imu-time-offset";
+      if (args.imu_time_offset_s != 0.0) {
+        // The offset found is on top of the one given.
+        core::ClockCheckResult total = clock;
+        total.offset_s -= args.imu_time_offset_s;
+        throw Failure{kOfflineFitBadInput, total.message(fix.str())};
+      }
+      throw Failure{kOfflineFitBadInput, clock.message(fix.str())};
+    }
   }
 
   input.from_bag = true;
@@ -140,15 +172,17 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
   bag.duration_s = st.bag_end_s - st.bag_start_s;
   bag.read_wall_s = st.read_wall_s;
   bag.settle_discard_s = args.settle_discard_s;
+  bag.imu_time_offset_s = args.imu_time_offset_s;
+  bag.files = st.files;
   bag.counters = st.counters;
   bag.done_seen = st.done_seen;
   bag.time_origin_s = input.table.time_origin_s;
   io::InputDescription description;
-  description.path = args.bag;
+  description.path = st.path;
   description.dwells = input.table.rows.size();
   description.bag = bag;
   std::ostringstream summary;
-  summary << "bag " << args.bag << " (" << st.imu_messages << " IMU messages on " << st.imu_topic
+  summary << (st.files > 1 ? "bags " : "bag ") << st.path << " (" << st.imu_messages << " IMU messages on " << st.imu_topic
           << ", " << st.command_messages << " commands on " << st.command_topic << ", "
           << std::fixed << std::setprecision(1) << bag.duration_s << " s)";
   description.summary = summary.str();
@@ -179,8 +213,15 @@ void check_phases(const core::PositionTable& table, int min_positions) {
 }
 
 void check_command_line(const OfflineFitArguments& args) {
-  if (args.bag.empty() == args.csv.empty()) {
+  if (args.bags.empty() == args.csv.empty()) {
     throw Failure{kOfflineFitBadCommandLine, "give exactly one of --bag FILE or --csv FILE"};
+  }
+  if (!args.csv.empty() && (args.imu_time_offset_given || args.skip_clock_check)) {
+    throw Failure{kOfflineFitBadCommandLine,
+                  "--imu-time-offset and --skip-clock-check apply to --bag only"};
+  }
+  if (!std::isfinite(args.imu_time_offset_s)) {
+    throw Failure{kOfflineFitBadCommandLine, "--imu-time-offset must be a number of seconds"};
   }
   if (!args.csv.empty() && (args.imu_topic_given || args.command_topic_given)) {
     throw Failure{kOfflineFitBadCommandLine, "--imu-topic and --command-topic apply to --bag only"};
@@ -217,7 +258,7 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   options.fit.local_gravity = args.gravity;
   options.analyze = args.analyze;
 
-  const Input input = args.bag.empty() ? read_csv_input(args) : read_bag_input(args, err);
+  const Input input = args.bags.empty() ? read_csv_input(args) : read_bag_input(args, err);
   check_phases(input.table, options.fit.min_positions_per_phase);
 
   core::CalibrationReport report;
@@ -255,6 +296,11 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   if (!input.context.complete) {
     err << kOfflineFitProgram << ": warning: incomplete run, result from the dwells found: "
         << input.context.warnings.front() << std::endl;
+  }
+  if (!report.quality.pass) {
+    err << kOfflineFitProgram << ": error: the result fails the quality gate: "
+        << report.quality.summary() << std::endl;
+    return kOfflineFitQualityFailed;
   }
   return kOfflineFitOk;
 }

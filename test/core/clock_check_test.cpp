@@ -57,16 +57,36 @@ TEST(ClockCheck, SubMillisecondTimingLagPasses) {
 }
 
 TEST(ClockCheck, OffsetsFromATenthToAHundredSecondsAreFound) {
+  // Moves of 0.4 s (MOVING to SETTLED): an offset of a tenth is a quarter of a move.
   const double offsets[] = {0.1, -0.1, 0.37, 1.0, -2.5, 5.0, -5.0, 13.3, 37.0, -61.2, 100.0};
   std::uint64_t seed = 20;
   for (double offset : offsets) {
-    const Recording rec = simulate_recording(stand(++seed));
+    SimulationOptions sim = stand(++seed);
+    sim.protocol.move_s = 0.3;
+    sim.protocol.settle_s = 0.1;
+    const Recording rec = simulate_recording(sim);
     const ClockCheckResult r = check(rec, offset);
     ASSERT_TRUE(r.checked) << r.not_checked_why;
     EXPECT_TRUE(r.offset_found) << "offset " << offset << " seed " << seed << ": explained "
-                                << r.explained_at_zero << " unshifted";
+                                << r.explained_at_zero << " unshifted, best shift " << r.best_shift_s
+                                << " gain " << r.gain;
     EXPECT_NEAR(r.offset_s, offset, 0.02) << "seed " << seed;
     EXPECT_GT(r.explained_at_offset, 0.9);
+  }
+}
+
+TEST(ClockCheck, GimbalThatReportsSettledLatePasses) {
+  // SETTLED 0.3 s after the motion ends (a settle timer), moves of 0.8 s: the motion's centroid
+  // sits 0.15 s before the middle of each MOVING -> SETTLED interval, but all of it lies inside.
+  for (std::uint64_t seed = 40; seed < 46; ++seed) {
+    Recording rec = simulate_recording(stand(seed));
+    for (GimbalEvent& c : rec.commands) {
+      if (c.state == GimbalState::Settled) c.stamp_s += 0.3;
+    }
+    const ClockCheckResult r = check(rec, 0.0);
+    ASSERT_TRUE(r.checked) << r.not_checked_why;
+    EXPECT_FALSE(r.offset_found) << r.message("--imu-time-offset");
+    EXPECT_NEAR(r.best_shift_s, -0.15, 0.05);
   }
 }
 

@@ -75,7 +75,7 @@ TEST(DwellAssembler, CountsNonFiniteBackwardsLateAndSettleDiscard) {
   assembler.add_command(command(1.0, core::Phase::Y, 0, S::Settled));
   assembler.add_sample(sample(1.1, 5));   // in the settle-discard window
   assembler.add_sample(sample(1.3, 1));
-  assembler.add_sample(sample(1.2, 1));   // stamp went backwards
+  assembler.add_sample(sample(1.3, 2));   // the stamp again, other values: clock went back
   assembler.add_sample(sample(1.4, std::nan("")));
   assembler.add_sample(sample(1.5, 3));
   assembler.add_sample(sample(2.0, 5));
@@ -123,6 +123,49 @@ TEST(DwellAssembler, ReorderWindowMakesArrivalOrderIrrelevant) {
   }
   EXPECT_EQ(shuffled.counters().dropped_late, 0u);
   EXPECT_EQ(shuffled.counters().commands_out_of_order, 0u);
+}
+
+TEST(DwellAssembler, ShuffledAndDuplicatedSamplesGiveTheSameTable) {
+  // IMU messages reordered within 0.2 s and one in seven sent twice (a bag merged from two
+  // recorders): every sample is used once, in stamp order, so the table is identical.
+  core::SimulationOptions sim;
+  sim.protocol.steps_per_phase = 6;
+  sim.protocol.dwell_s = 1.0;
+  sim.rate_hz = 200;
+  const core::Recording rec = core::simulate_recording(sim);
+  struct Msg { double arrival; bool is_command; std::size_t i; };
+  std::vector<Msg> messages;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> delay(0.0, 0.2);
+  for (std::size_t i = 0; i < rec.commands.size(); ++i) messages.push_back({rec.commands[i].stamp_s, true, i});
+  std::uint64_t copies = 0;
+  for (std::size_t i = 0; i < rec.samples.size(); ++i) {
+    messages.push_back({rec.samples[i].stamp_s + delay(rng), false, i});
+    if (i % 7 == 3) {
+      messages.push_back({rec.samples[i].stamp_s + delay(rng), false, i});
+      ++copies;
+    }
+  }
+  std::sort(messages.begin(), messages.end(), [](const Msg& a, const Msg& b) { return a.arrival < b.arrival; });
+  core::AssemblerOptions options;
+  options.reorder_window_s = 0.25;
+  core::DwellAssembler in_order(options), messy(options);
+  core::feed_in_stamp_order(rec, &in_order);
+  for (const auto& m : messages) {
+    if (m.is_command) messy.add_command(rec.commands[m.i]);
+    else messy.add_sample(rec.samples[m.i]);
+  }
+  messy.flush();
+  ASSERT_EQ(messy.table().rows.size(), in_order.table().rows.size());
+  for (std::size_t i = 0; i < messy.table().rows.size(); ++i) {
+    EXPECT_EQ(messy.table().rows[i].n, in_order.table().rows[i].n);
+    EXPECT_EQ(messy.table().rows[i].mean, in_order.table().rows[i].mean);
+    EXPECT_EQ(messy.table().rows[i].std, in_order.table().rows[i].std);
+  }
+  EXPECT_EQ(messy.counters().duplicates, copies);
+  EXPECT_EQ(messy.counters().dropped_backwards, 0u);
+  EXPECT_EQ(messy.counters().dropped_late, 0u);
+  EXPECT_EQ(messy.counters().samples_used, in_order.counters().samples_used);
 }
 
 TEST(DwellAssembler, CallbackFiresOncePerDwellAndResetStartsOver) {

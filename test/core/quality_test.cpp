@@ -97,10 +97,10 @@ TEST(QualityGate, ImplausibleTriadFails) {
 
 TEST(QualityGate, StarvedDwellFails) {
   PositionTable table = simulate_position_table(honest_stand(7));
-  table.rows[5].n = 4;
+  table.rows[5].n = 2;
   const CalibrationReport report = calibrate(table, nullptr, {});
   EXPECT_FALSE(report.quality.pass);
-  EXPECT_TRUE(mentions(report.quality, "4 samples")) << report.quality.summary();
+  EXPECT_TRUE(mentions(report.quality, "2 samples")) << report.quality.summary();
 }
 
 }  // namespace

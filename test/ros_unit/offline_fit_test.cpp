@@ -130,13 +130,20 @@ ai::OfflineFitArguments parse_arguments(const std::vector<std::string>& args) {
       a.analyze = true;
       continue;
     }
+    if (flag == "--skip-clock-check") {
+      a.skip_clock_check = true;
+      continue;
+    }
     if (i + 1 >= args.size()) {
       ADD_FAILURE() << flag << " without a value";
       break;
     }
     const std::string& value = args[++i];
     if (flag == "--bag") {
-      a.bag = value;
+      a.bags.push_back(value);
+    } else if (flag == "--imu-time-offset") {
+      a.imu_time_offset_s = std::stod(value);
+      a.imu_time_offset_given = true;
     } else if (flag == "--csv") {
       a.csv = value;
     } else if (flag == "--imu-topic") {

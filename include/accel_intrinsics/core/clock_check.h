@@ -10,7 +10,7 @@
 //     midpoint (motion profiles are symmetric: raised cosine, trapezoid).
 // A shift of `min_offset_s` or more is an unsynchronized clock: the run must not be fitted.
 // Smaller lags are the timing-lag analysis' job (raw_stream_analysis.h). A gimbal that reports
-// SETTLED long after it stopped moving biases step 3 by half that delay.
+// SETTLED long after it stopped moving biases step 3 by half that delay (see min_offset_of_move).
 //
 // Memory: one bin per `bin_s` of IMU time (100 per second by default), whatever the IMU rate.
 #pragma once
@@ -31,10 +31,17 @@ struct ClockCheckOptions {
   // Motion is the change between the mean outputs of two adjacent blocks of this length: long
   // enough to rise above the noise, short against a move.
   double block_s = 0.1;
-  double min_offset_s = 0.05;  // smaller shifts pass (timing lag, filter delay)
+  double min_offset_s = 0.05;
+  double min_rate_hz = 20.0;  // sparser IMU streams are not checked  // smaller shifts pass (timing lag, filter delay)
   // The IMU motion must follow the moves: at the best shift at least this share of it lies
   // inside them, or the check cannot tell (a DUT that does not turn, a table of other data).
   double min_explained = 0.5;
+  // An offset must put this much more of the motion inside the (unpadded) step moves than none,
+  // or be at least `min_offset_of_move` of a typical move's duration. A gimbal that reports
+  // SETTLED a delay D after it stops looks like an IMU clock D/2 early: it passes while
+  // D < 2/3 of the move (D/2 < 0.2 (move + D)).
+  double min_gain = 0.02;
+  double min_offset_of_move = 0.2;
   // Coarse shifts explaining at least (1 - alias_tolerance) x the best are compared by fit.
   double alias_tolerance = 0.1;
   // Longest stretch of IMU time summarized (bins beyond it are not allocated): a guard against a
@@ -51,6 +58,8 @@ struct ClockCheckResult {
   double offset_s = 0.0;
   double explained_at_zero = 0.0;  // share of the IMU motion inside the moves, unshifted
   double explained_at_offset = 0.0;
+  double best_shift_s = 0.0;  // the shift found, also when too small to matter
+  double gain = 0.0;          // motion share gained inside the unpadded moves by that shift
   // When offset_found: "IMU stamps are 5.00 s later than the gimbal's: clocks not synchronized;
   // pass <fix_option> -5.00" (fix_option given to message()).
   std::string message(const std::string& fix_option) const;

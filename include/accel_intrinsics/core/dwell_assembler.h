@@ -5,7 +5,9 @@
 // receive order). Events wait in a reorder buffer of `reorder_window_s` and are processed in
 // stamp order once older than the newest stamp seen minus that window; memory is bounded by the
 // window, not the dwell length. At equal stamps a command goes before a sample, so a dwell is the
-// half-open interval [SETTLED, next MOVING or DONE).
+// half-open interval [SETTLED, next MOVING or DONE). Samples may arrive in any order inside the
+// window; a sample that repeats the stamp of the one before it (in stamp order) is counted as a
+// duplicate when its values are the same and dropped as conflicting when they are not.
 #pragma once
 
 #include <Eigen/Core>
@@ -49,7 +51,9 @@ struct AssemblerCounters {
   std::uint64_t dropped_outside_dwell = 0;  // MOVING, before the first command, after DONE
   std::uint64_t dropped_settle_discard = 0;
   std::uint64_t dropped_non_finite = 0;
-  std::uint64_t dropped_backwards = 0;  // stamp not after the previous sample's stamp
+  // The stamp of an earlier sample with other values (a device clock that went back).
+  std::uint64_t dropped_backwards = 0;
+  std::uint64_t duplicates = 0;  // the same stamp and values again (a duplicated message)
   std::uint64_t dropped_late = 0;       // arrived after the reorder window had passed its stamp
   std::uint64_t commands = 0;
   std::uint64_t commands_out_of_order = 0;  // SETTLED that does not follow its MOVING, etc.
@@ -116,7 +120,8 @@ class DwellAssembler {
   std::uint64_t next_sequence_ = 0;
   double newest_stamp_s_;
   double released_until_s_;
-  double last_sample_stamp_s_;
+  double last_sample_stamp_s_;  // of the newest sample released
+  Eigen::Vector3d last_sample_outputs_ = Eigen::Vector3d::Zero();
 
   // Dwell state (in stamp order).
   bool have_moving_ = false;

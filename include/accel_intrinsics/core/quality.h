@@ -31,7 +31,8 @@ struct QualityOptions {
   // orthogonal; 30 degrees off is a wrong table or a wrong axis assignment.
   double min_angle_deg = 60.0;
   double max_angle_deg = 120.0;
-  std::uint64_t min_samples_per_dwell = 10;
+  // Fewer samples leave a dwell without a meaningful standard error.
+  std::uint64_t min_samples_per_dwell = 3;
 };
 
 struct Quality {

@@ -46,6 +46,8 @@ struct BagInputDescription {
   double duration_s = 0.0;
   double read_wall_s = 0.0;
   double settle_discard_s = 0.0;
+  double imu_time_offset_s = 0.0;  // added to the IMU stamps (--imu-time-offset)
+  std::uint32_t files = 1;         // bags of the run
   core::AssemblerCounters counters;
   bool done_seen = false;
   double time_origin_s = std::numeric_limits<double>::quiet_NaN();

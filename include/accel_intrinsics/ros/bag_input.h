@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "accel_intrinsics/core/clock_check.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/ros/bag_topics.h"
@@ -47,6 +48,14 @@ struct BagInputOptions {
   // the raw-stream analyses (timing lag). Memory then grows with the bag.
   std::vector<core::GimbalEvent>* raw_commands = nullptr;
   std::vector<core::ImuSample>* raw_samples = nullptr;
+  // Added to every IMU stamp (a device clock offset from the gimbal's; DESIGN.md section 5).
+  double imu_time_offset_s = 0.0;
+  // When set, sees every accepted command and (shifted) IMU sample: the clock check.
+  core::ClockCheck* clock_check = nullptr;
+  // The IMU topic was not named: a bag whose only sensor_msgs/Imu topic has another name uses it.
+  bool imu_by_type = false;
+  // Flush the assembler after the last message (false: more bags of the same run follow).
+  bool flush_at_end = true;
 };
 
 struct BagInputStats {
@@ -71,6 +80,8 @@ struct BagInputStats {
   std::uint32_t steps_announced[3] = {0, 0, 0};
   core::AssemblerCounters counters;
   std::string reader;  // "chunk scan" or "rosbag::View"
+  std::string topic_note;  // the IMU topic was found by its type (RunTopics::note)
+  std::uint32_t files = 1;  // bags read for this run
 };
 
 struct BagRun {
@@ -86,5 +97,16 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
 
 // feed_bag into a fresh assembler with options.assembler; returns its table and the statistics.
 BagRun read_bag(const std::string& path, const BagInputOptions& options = {});
+
+// One run recorded into several bags (rosbag record --split, or restarted recorders): `paths`
+// may name bags and directories (their *.bag files). The bags are fed in the order of their
+// first message into one assembler, flushed once at the end, so messages reordered across a
+// file boundary still land in their dwells. Statistics are summed; topics must resolve to the
+// same names in every bag.
+BagRun read_bags(const std::vector<std::string>& paths, const BagInputOptions& options = {});
+
+// `paths` with directories replaced by their *.bag files (sorted); throws BagInputError for a
+// directory without bags or a path that does not exist.
+std::vector<std::string> expand_bag_paths(const std::vector<std::string>& paths);
 
 }  // namespace accel_intrinsics

@@ -35,11 +35,14 @@ std::string topic_namespace(const std::string& resolved, const std::string& requ
 struct RunTopics {
   std::string imu;
   std::string command;
+  std::string note;  // how a topic was found when not by its name, for the user
 };
 
 // Resolves both topics of a run with resolve_topic(); when one of them is ambiguous between
-// namespaces, the namespace of the other decides (several stands recorded in one bag).
+// namespaces, the namespace of the other decides (several stands recorded in one bag). With
+// `imu_by_type` (the IMU topic was not named by the user), a bag without the default IMU topic
+// but with exactly one sensor_msgs/Imu topic uses that one and says so in `note`.
 RunTopics resolve_run_topics(const std::string& imu_requested, const std::string& command_requested,
-                             const std::vector<BagTopic>& topics);
+                             const std::vector<BagTopic>& topics, bool imu_by_type = false);
 
 }  // namespace accel_intrinsics

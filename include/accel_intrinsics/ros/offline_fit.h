@@ -2,9 +2,15 @@
 // playback (DESIGN.md section 2, "Offline tool"). src/nodes/offline_fit.cpp is its command line;
 // tests call run_offline_fit() in process.
 //
-//   offline_fit (--bag FILE | --csv FILE) [--imu-topic T] [--command-topic T] [--gravity G]
-//               [--model joint|eq4] [--analyze] [--json OUT] [--csv-out FILE]
-//               [--settle-discard SECONDS]
+//   offline_fit (--bag FILE|DIR [--bag ...] | --csv FILE) [--imu-topic T] [--command-topic T]
+//               [--gravity G] [--model joint|eq4] [--analyze] [--json OUT] [--csv-out FILE]
+//               [--settle-discard SECONDS] [--imu-time-offset SECONDS] [--skip-clock-check]
+//
+// A run split over several bags (rosbag record --split) is read as one: --bag repeated, or a
+// directory of bags. Before fitting a bag, the clock check (core/clock_check.h) makes sure the
+// IMU and the gimbal stamp on one clock; --imu-time-offset shifts the IMU stamps. Every result
+// passes through the quality gate (core/quality.h): a failing one is written, with
+// "quality": {"pass": false, ...}, and the exit status is 3.
 //
 // The bag goes through core::DwellAssembler (bag_input.h), the dwell assignment of the
 // calibration node, and the table through core::calibrate(), the node's pipeline, so the result
@@ -20,6 +26,7 @@
 
 #include <iosfwd>
 #include <string>
+#include <vector>
 
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/ros/names.h"
@@ -33,11 +40,12 @@ enum OfflineFitStatus : int {
   kOfflineFitOk = 0,
   kOfflineFitBadInput = 1,  // unreadable or insufficient input, failed fit or analysis, I/O
   kOfflineFitBadCommandLine = 2,
+  kOfflineFitQualityFailed = 3,  // outputs written; the result is not a calibration
 };
 
 // The command line, parsed (src/nodes/offline_fit.cpp); defaults as the tool's.
 struct OfflineFitArguments {
-  std::string bag;  // exactly one of bag and csv
+  std::vector<std::string> bags;  // bags and directories of bags; exactly one of bags and csv
   std::string csv;
   std::string imu_topic = names::kImuTopic;
   std::string command_topic = names::kGimbalCommandTopic;
@@ -47,10 +55,13 @@ struct OfflineFitArguments {
   std::string json_out;  // "-": standard output (the text report then goes to `err`)
   std::string csv_out;
   double settle_discard_s = 0.0;
+  double imu_time_offset_s = 0.0;  // added to every IMU stamp
+  bool skip_clock_check = false;
   // Given explicitly (they apply to --bag only, and are refused with --csv).
   bool imu_topic_given = false;
   bool command_topic_given = false;
   bool settle_discard_given = false;
+  bool imu_time_offset_given = false;
 };
 
 // Runs the tool: the text report on `out` (on `err` when json_out is "-"), progress, warnings
