@@ -669,14 +669,16 @@ TEST(OfflineFit, TwoNamespacesNeedAChoice) {
 
 // --settle-discard S drops the samples of the first S seconds after each SETTLED stamp. In the
 // hand-made run the kept samples sit at SETTLED + 0, 0.1, 0.2, 0.3, 0.4 s: with S = 0.25 the
-// first three of each dwell go, n = 2, and the means are those of the last two samples.
+// first three of each dwell go, n = 2, and the means are those of the last two samples. Two
+// samples per dwell fail the quality gate: the outputs are written and the exit status is 3.
 TEST(OfflineFit, SettleDiscardDropsTheFirstSecondsOfEachDwell) {
   TempDir dir;
   const HandRun run = make_hand_bag(dir.file("run.bag"));
   const ToolRun r = run_tool({"--bag", dir.file("run.bag"), "--settle-discard", "0.25", "--csv-out",
                               dir.file("table.csv"), "--json", dir.file("result.json")},
                              dir);
-  ASSERT_EQ(r.status, 0) << r.err;
+  ASSERT_EQ(r.status, ai::kOfflineFitQualityFailed) << r.err;
+  EXPECT_NE(r.err.find("has 2 samples, fewer than 3"), std::string::npos) << r.err;
   const core::PositionTable table = core::read_position_table_file(dir.file("table.csv"));
   ASSERT_EQ(table.rows.size(), run.dwells.size());
   for (std::size_t i = 0; i < run.dwells.size(); ++i) {
@@ -691,6 +693,8 @@ TEST(OfflineFit, SettleDiscardDropsTheFirstSecondsOfEachDwell) {
     }
   }
   const json j = load_json(dir.file("result.json"));
+  EXPECT_FALSE(j["quality"]["pass"].get<bool>());
+  EXPECT_EQ(j["quality"]["reasons"].size(), 1u);
   EXPECT_EQ(j["input"]["settle_discard_s"].get<double>(), 0.25);
   EXPECT_EQ(j["input"]["samples_used"].get<std::uint64_t>(), 2u * run.dwells.size());
   EXPECT_EQ(j["input"]["dropped_settle_discard"].get<std::uint64_t>(), 3u * run.dwells.size());
