@@ -43,7 +43,10 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
 CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
                             const CalibrateOptions& options) {
   CalibrationReport report = fit_and_analyze(table, raw, options);
-  report.quality = assess_quality(report.certificate, table, options.quality);
+  report.output_unit = options.output_unit.empty() ? "m/s^2" : options.output_unit;
+  QualityOptions quality = options.quality;
+  quality.outputs_in_si = quality.outputs_in_si && report.output_unit == "m/s^2";
+  report.quality = assess_quality(report.certificate, table, quality);
   return report;
 }
 

@@ -46,7 +46,7 @@ const char* run_state_name(RunState state) {
 }
 
 CalibrationRun::CalibrationRun(const RunOptions& options)
-    : options_(options), assembler_(options.assembler) {
+    : options_(options), assembler_(options.assembler), clock_check_(options.clock) {
   connect_assembler();
 }
 
@@ -85,6 +85,16 @@ RunActions CalibrationRun::take_actions() {
 }
 
 void CalibrationRun::emit_fit() {
+  if (options_.check_clock) {
+    ClockCheckResult clock = clock_check_.result();
+    if (clock.offset_found) {
+      // Name the offset to set in total, on top of the one already applied.
+      clock.offset_s -= options_.imu_time_offset_s;
+      fit_error_ = clock.message("imu_time_offset_s");
+      log(RunAction::Level::Error, "no fit: " + fit_error_);
+      return;
+    }
+  }
   RunAction a;
   a.kind = RunAction::Kind::FitNow;
   a.table = table_;
@@ -141,6 +151,7 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
     for (RunAction& a : after_reset) actions_.push_back(std::move(a));
     ++commands_in_run_;
   }
+  clock_check_.add_command(event);
   if (!std::isfinite(table_.time_origin_s)) {
     table_.time_origin_s = event.stamp_s;  // t0 of the drift term: the first command of the run
     steps_seen_ = event.steps;
@@ -181,9 +192,12 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
   return take_actions();
 }
 
-RunActions CalibrationRun::on_sample(const ImuSample& sample) {
+RunActions CalibrationRun::on_sample(const ImuSample& received) {
+  ImuSample sample = received;
+  sample.stamp_s += options_.imu_time_offset_s;
   if (sample.stamp_s > newest_sample_stamp_s_) newest_sample_stamp_s_ = sample.stamp_s;
   assembler_.add_sample(sample);
+  clock_check_.add_sample(sample);
   if (!completed_rows_.empty()) process_completed_rows();
   const AssemblerCounters& c = assembler_.counters();
   if (c.dropped_non_finite != warned_.dropped_non_finite ||
@@ -216,6 +230,12 @@ RunActions CalibrationRun::on_controller_state(const std::string& state,
     controller_abort_.clear();
   }
   return take_actions();
+}
+
+RunActions CalibrationRun::on_streams_idle() {
+  if (!done_pending_) return take_actions();
+  log(RunAction::Level::Info, "no messages or clock ticks since DONE: fitting now");
+  return tick(done_stamp_s_ + options_.assembler.reorder_window_s);
 }
 
 RunActions CalibrationRun::tick(double now_s) {
@@ -372,6 +392,7 @@ RunActions CalibrationRun::restore(const PositionTable& table, const CheckpointS
 RunActions CalibrationRun::reset(const std::string& reason) {
   const std::size_t dwells = table_.rows.size();
   assembler_.reset();
+  clock_check_.reset();
   connect_assembler();
   completed_rows_.clear();
   done_pending_ = false;

@@ -196,6 +196,47 @@ void validate_geometry(const PositionTable& table, int min_positions) {
   }
 }
 
+// The joint fit takes any set of orientations that determines S and O (DESIGN.md section 6):
+// the gimbal phases present keep the per-phase checks (they are what the rows claim to be),
+// and the whole set must give (f_x, f_y, f_z, 1) full rank, well conditioned. A complete gimbal
+// run (three phases, no direction rows) is checked as before.
+void validate_joint_geometry(const PositionTable& table, int min_positions) {
+  const std::array<int, 3> counts = positions_per_phase(table);
+  const bool three_phases = counts[0] > 0 && counts[1] > 0 && counts[2] > 0;
+  if (three_phases && rows_with_direction(table) == 0) {
+    validate_geometry(table, min_positions);
+    return;
+  }
+  if (table.rows.empty()) throw FitError("the position table has no dwells");
+  for (Phase p : kPhases) {
+    const int count = counts[index(p)];
+    if (count > 0 && count < min_positions)
+      throw FitError("phase " + std::string(phase_name(p)) + " has " + std::to_string(count) +
+                     " dwells, needs at least " + std::to_string(min_positions));
+  }
+  Eigen::Matrix4d M = Eigen::Matrix4d::Zero();
+  for (const DwellRecord& r : table.rows) {
+    const Eigen::Vector3d f = specific_force_direction(r);
+    const Eigen::Vector4d h(f(0), f(1), f(2), 1.0);
+    M += h * h.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eig(M / static_cast<double>(table.rows.size()));
+  const Eigen::Vector4d ev = eig.eigenvalues();
+  // Conditioning: 1e-6 leaves the weakest combination determined to about 1000x the noise of the
+  // others; below it the fit is dominated by round-off and by how well the orientations are known.
+  if (ev(0) > 1e-6 * ev(3)) return;
+  Eigen::Vector4d c = eig.eigenvectors().col(0);
+  c /= c.cwiseAbs().maxCoeff();
+  std::ostringstream m;
+  m.precision(3);
+  m << "the orientations do not determine S and O (" << table.rows.size()
+    << " dwells): every one satisfies " << c(0) << " f_x + " << c(1) << " f_y + " << c(2)
+    << " f_z + " << c(3)
+    << " = 0 (f: unit specific force), so the same combination of the vector components and "
+       "offsets is unobservable; add orientations off that plane";
+  throw FitError(m.str());
+}
+
 void validate_effects(const std::vector<Effect>& effects, FitModel model,
                       const std::vector<DwellGeometry>& geoms) {
   if (effects.empty()) return;
@@ -368,7 +409,7 @@ LinearJoint solve_joint_linear(const PositionTable& table, const std::vector<Eig
   }
   for (std::size_t i = 0; i < table.rows.size(); ++i) {
     const DwellRecord& row = table.rows[i];
-    const Eigen::Vector3d f = in_plane_direction(row.phase, row.angle_rad) * g;
+    const Eigen::Vector3d f = specific_force_direction(row) * g;
     const Eigen::Vector4d h(f(0), f(1), f(2), 1.0);
     const Eigen::Matrix4d hh = h * h.transpose();
     for (int s = 0; s < 3; ++s) {
@@ -406,7 +447,7 @@ FitResult fit_joint_linear(const PositionTable& table, const std::vector<Eigen::
   const double g = options.local_gravity;
   fill_residuals(r, table, se, kNumLinear, [&](std::size_t i) -> Eigen::Vector3d {
     const DwellRecord& row = table.rows[i];
-    return lin.S * (in_plane_direction(row.phase, row.angle_rad) * g) + lin.O;
+    return lin.S * (specific_force_direction(row) * g) + lin.O;
   });
   finish_result(r, lin.covariance * chi2_scale(r, unit_weights));
   for (int p = 0; p < 3; ++p) {
@@ -701,7 +742,17 @@ FitResult fit(const PositionTable& table, const FitOptions& options) {
     validate_effects(options.effects, options.model, {});
   }
   validate_rows(table);
-  validate_geometry(table, options.min_positions_per_phase);
+  if (options.model == FitModel::Eq4) {
+    for (std::size_t i = 0; i < table.rows.size(); ++i) {
+      if (table.rows[i].has_direction)
+        throw FitError("row " + std::to_string(i + 1) +
+                       " gives its orientation as f_x,f_y,f_z: eq4 fits a sinusoid per gimbal "
+                       "phase and needs the three phases; use the joint model");
+    }
+    validate_geometry(table, options.min_positions_per_phase);
+  } else {
+    validate_joint_geometry(table, options.min_positions_per_phase);
+  }
   bool unit_weights = false;
   const std::vector<Eigen::Vector3d> se = standard_errors(table, &unit_weights);
   FitResult r;

@@ -38,13 +38,15 @@ Eigen::Vector3d DwellAccumulator::sample_std() const {
 
 const char* const kPositionTableHeader =
     "phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w";
+const char* const kDirectionColumns = ",f_x,f_y,f_z";
 
 namespace {
 
 constexpr int kColumns = 12;
-const char* const kColumnNames[kColumns] = {"phase",  "step",  "angle_rad", "t_start",
-                                            "t_end",  "n",     "mean_u",    "mean_v",
-                                            "mean_w", "std_u", "std_v",     "std_w"};
+constexpr int kColumnsWithDirection = 15;
+const char* const kColumnNames[kColumnsWithDirection] = {
+    "phase", "step",   "angle_rad", "t_start", "t_end", "n",   "mean_u", "mean_v",
+    "mean_w", "std_u", "std_v",     "std_w",   "f_x",   "f_y", "f_z"};
 
 std::string trim(const std::string& s) {
   const auto begin = s.find_first_not_of(" \t\r\n");
@@ -105,6 +107,7 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
   std::string line;
   std::size_t line_number = 0;
   bool have_header = false;
+  int columns = kColumns;
   while (std::getline(in, line)) {
     ++line_number;
     // A UTF-8 byte-order mark, as spreadsheet programs write, is not part of the header.
@@ -112,29 +115,56 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
     const std::string text = trim(line);
     if (text.empty() || text[0] == '#') continue;
     if (!have_header) {
-      if (text != kPositionTableHeader) {
+      if (text == std::string(kPositionTableHeader) + kDirectionColumns) {
+        columns = kColumnsWithDirection;
+      } else if (text != kPositionTableHeader) {
         fail(source_name, line_number,
-             std::string("expected the header '") + kPositionTableHeader + "'");
+             std::string("expected the header '") + kPositionTableHeader + "' (optionally + '" +
+                 kDirectionColumns + "')");
       }
       have_header = true;
       continue;
     }
     const std::vector<std::string> fields = split(text);
-    if (static_cast<int>(fields.size()) != kColumns) {
+    if (static_cast<int>(fields.size()) != columns) {
       fail(source_name, line_number,
-           "expected " + std::to_string(kColumns) + " fields, found " +
+           "expected " + std::to_string(columns) + " fields, found " +
                std::to_string(fields.size()));
     }
     DwellRecord row;
-    if (!parse_phase(trim(fields[0]), &row.phase)) {
+    // Known orientation: f_x,f_y,f_z all given (all empty: a gimbal row).
+    if (columns == kColumnsWithDirection) {
+      const bool any = !trim(fields[12]).empty() || !trim(fields[13]).empty() ||
+                       !trim(fields[14]).empty();
+      if (any) {
+        for (int k = 0; k < 3; ++k)
+          row.direction(k) = parse_double(fields[12 + k], source_name, line_number, 12 + k);
+        const double norm = row.direction.norm();
+        if (std::abs(norm - 1.0) > 0.01) {
+          std::ostringstream m;
+          m << "f_x,f_y,f_z must be a unit vector (the direction of the specific force), its "
+               "norm is "
+            << norm;
+          fail(source_name, line_number, m.str());
+        }
+        row.direction /= norm;
+        row.has_direction = true;
+      }
+    }
+    const std::string phase = trim(fields[0]);
+    if (phase == "-" && !row.has_direction) {
+      fail(source_name, line_number, "phase '-' needs the direction f_x,f_y,f_z");
+    } else if (phase != "-" && !parse_phase(phase, &row.phase)) {
       fail(source_name, line_number,
-           "field phase must be x, y or z, got '" + trim(fields[0]) + "'");
+           "field phase must be x, y or z (or - with f_x,f_y,f_z), got '" + phase + "'");
     }
     const std::uint64_t step = parse_count(fields[1], source_name, line_number, 1);
     if (step > std::numeric_limits<std::uint32_t>::max())
       fail(source_name, line_number, "field step is too large");
     row.step = static_cast<std::uint32_t>(step);
-    row.angle_rad = parse_double(fields[2], source_name, line_number, 2);
+    row.angle_rad = row.has_direction && trim(fields[2]).empty()
+                        ? 0.0
+                        : parse_double(fields[2], source_name, line_number, 2);
     row.t_start_s = parse_double(fields[3], source_name, line_number, 3);
     row.t_end_s = parse_double(fields[4], source_name, line_number, 4);
     if (row.t_end_s < row.t_start_s)
@@ -164,20 +194,35 @@ PositionTable read_position_table_file(const std::string& path) {
   return read_position_table(in, path);
 }
 
-void write_position_row(std::ostream& out, const DwellRecord& row) {
+namespace {
+
+void write_row(std::ostream& out, const DwellRecord& row, bool direction_columns) {
   const auto precision = out.precision(std::numeric_limits<double>::max_digits10);
-  out << phase_name(row.phase) << ',' << row.step << ',' << row.angle_rad << ',' << row.t_start_s
-      << ',' << row.t_end_s << ',' << row.n;
+  out << (row.has_direction ? "-" : phase_name(row.phase)) << ',' << row.step << ','
+      << row.angle_rad << ',' << row.t_start_s << ',' << row.t_end_s << ',' << row.n;
   for (int k = 0; k < 3; ++k) out << ',' << row.mean(k);
   for (int k = 0; k < 3; ++k) out << ',' << row.std(k);
+  if (direction_columns) {
+    for (int k = 0; k < 3; ++k) {
+      out << ',';
+      if (row.has_direction) out << row.direction(k);
+    }
+  }
   out << '\n';
   out.flush();
   out.precision(precision);
 }
 
+}  // namespace
+
+void write_position_row(std::ostream& out, const DwellRecord& row) {
+  write_row(out, row, row.has_direction);
+}
+
 void write_position_table(std::ostream& out, const PositionTable& table) {
-  out << kPositionTableHeader << '\n';
-  for (const DwellRecord& row : table.rows) write_position_row(out, row);
+  const bool directions = rows_with_direction(table) > 0;
+  out << kPositionTableHeader << (directions ? kDirectionColumns : "") << '\n';
+  for (const DwellRecord& row : table.rows) write_row(out, row, directions);
 }
 
 void write_position_table_file(const std::string& path, const PositionTable& table) {
@@ -212,8 +257,14 @@ int ApproachTracker::visit(Phase phase, double angle_rad) {
   return approach;
 }
 
+Eigen::Vector3d specific_force_direction(const DwellRecord& row) {
+  return row.has_direction ? row.direction : in_plane_direction(row.phase, row.angle_rad);
+}
+
 DwellGeometry dwell_inputs(const DwellRecord& row, double time_origin_s, int approach) {
   DwellGeometry inputs;
+  inputs.has_direction = row.has_direction;
+  inputs.direction = row.direction;
   inputs.phase = row.phase;
   inputs.angle_rad = row.angle_rad;
   inputs.time_s = 0.5 * (row.t_start_s + row.t_end_s) - time_origin_s;
@@ -227,21 +278,32 @@ std::vector<DwellGeometry> dwell_geometries(const PositionTable& table) {
   geometries.reserve(table.rows.size());
   ApproachTracker approach;
   for (const DwellRecord& row : table.rows) {
-    geometries.push_back(dwell_inputs(row, t0, approach.visit(row.phase, row.angle_rad)));
+    const int a = row.has_direction ? +1 : approach.visit(row.phase, row.angle_rad);
+    geometries.push_back(dwell_inputs(row, t0, a));
   }
   return geometries;
 }
 
 int approach_of_appended_row(const PositionTable& table, Phase phase, double angle_rad) {
   ApproachTracker approach;
-  for (const DwellRecord& row : table.rows) approach.visit(row.phase, row.angle_rad);
+  for (const DwellRecord& row : table.rows) {
+    if (!row.has_direction) approach.visit(row.phase, row.angle_rad);
+  }
   return approach.approach_of(phase, angle_rad);
 }
 
 std::array<int, 3> positions_per_phase(const PositionTable& table) {
   std::array<int, 3> counts{{0, 0, 0}};
-  for (const DwellRecord& row : table.rows) ++counts[index(row.phase)];
+  for (const DwellRecord& row : table.rows) {
+    if (!row.has_direction) ++counts[index(row.phase)];
+  }
   return counts;
+}
+
+std::size_t rows_with_direction(const PositionTable& table) {
+  std::size_t n = 0;
+  for (const DwellRecord& row : table.rows) n += row.has_direction ? 1 : 0;
+  return n;
 }
 
 }  // namespace core

@@ -271,6 +271,7 @@ nlohmann::json result_document(const core::CalibrationReport& report,
   j["certificate_model"] = report.certificate.model_label();
   j["certificate_policy"] = report.certificate_refit_policy ? "refit" : "base";
   j["quality"] = {{"pass", report.quality.pass}, {"reasons", report.quality.reasons}};
+  j["output_unit"] = report.output_unit;
   if (report.analysis) {
     // The analysis' keys beside the result's, never replacing one (local_gravity is the same).
     nlohmann::json extra = analysis_json(*report.analysis);

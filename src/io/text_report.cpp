@@ -85,6 +85,10 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
 void write_text_report(std::ostream& out, const core::CalibrationReport& report,
                        const ResultContext& context) {
   write_fit_report(out, report.certificate, context);
+  if (report.output_unit != "m/s^2") {
+    out << "  output unit:   " << report.output_unit << " (responsivities in " << report.output_unit
+        << " per m/s^2, offsets in " << report.output_unit << ")\n";
+  }
   out << "  quality gate:  " << (report.quality.pass ? "passed" : "FAILED") << "\n";
   for (const std::string& reason : report.quality.reasons) out << "    - " << reason << "\n";
   if (!report.analysis) return;

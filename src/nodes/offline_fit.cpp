@@ -28,7 +28,9 @@ int main(int argc, char** argv) {
                  "several bags")
       ->type_name("FILE|DIR");
   app.add_option("--csv", args.csv,
-                 "position table: " + std::string(ai::core::kPositionTableHeader));
+                 "position table: " + std::string(ai::core::kPositionTableHeader) +
+                     " (optionally" + ai::core::kDirectionColumns +
+                     ": known orientations, phase '-')");
   auto* imu =
       app.add_option("--imu-topic", args.imu_topic, "IMU topic in the bag (sensor_msgs/Imu)")
           ->capture_default_str();
@@ -51,6 +53,10 @@ int main(int argc, char** argv) {
                      "bag only: add SECONDS to every IMU stamp (an IMU clock offset from the "
                      "gimbal's; the clock check names the value)")
           ->type_name("SECONDS");
+  app.add_option("--output-unit", args.output_unit,
+                 "unit of the raw outputs (m/s^2, or counts, V, ...: responsivities are then in "
+                 "that unit per m/s^2)")
+      ->capture_default_str();
   app.add_flag("--skip-clock-check", args.skip_clock_check,
                "bag only: do not check that IMU and gimbal stamps share one clock");
   try {

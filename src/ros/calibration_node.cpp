@@ -4,11 +4,13 @@
 #include <diagnostic_msgs/KeyValue.h>
 #include <std_msgs/String.h>
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
 #include "accel_intrinsics/AbortRun.h"
 #include "accel_intrinsics/ResumeAt.h"
+#include "accel_intrinsics/core/quality.h"
 #include "accel_intrinsics/io/analysis_report.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/result_document.h"
@@ -66,6 +68,9 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
   progress_sub_ = nh_.subscribe(names::kProgressTopic, 10, &CalibrationNode::on_progress, this);
   timer_ =
       nh_.createTimer(ros::Duration(options_.flush_period_s), &CalibrationNode::on_timer, this);
+  last_activity_ = ros::WallTime::now();
+  wall_timer_ = nh_.createWallTimer(ros::WallDuration(std::min(0.25, options_.idle_fit_after_s / 2)),
+                                    &CalibrationNode::on_wall_timer, this);
   ROS_INFO("calibration: model %s, local_gravity %.6f m/s^2, reorder window %.3f s, output %s%s%s",
            core::model_name(options_.calibrate.fit.model), options_.calibrate.fit.local_gravity,
            options_.run.assembler.reorder_window_s,
@@ -98,6 +103,7 @@ CalibrationNode::~CalibrationNode() {
 
 void CalibrationNode::handle_command(const GimbalCommand& msg) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
+  last_activity_ = ros::WallTime::now();
   if (!is_well_formed(msg)) {
     run_.note_rejected_command();
     ROS_WARN_THROTTLE(5.0,
@@ -113,6 +119,7 @@ void CalibrationNode::handle_command(const GimbalCommand& msg) {
 
 void CalibrationNode::handle_imu(const sensor_msgs::Imu& msg) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
+  last_activity_ = ros::WallTime::now();
   ++imu_received_;
   const core::ImuSample sample = to_core(msg);
   if (std::isfinite(sample.stamp_s)) {
@@ -147,6 +154,27 @@ std::vector<core::RunAction> CalibrationNode::update(const ros::Time& now) {
 
 void CalibrationNode::on_timer(const ros::TimerEvent&) {
   for (const core::RunAction& request : update(ros::Time::now())) call_controller(request);
+}
+
+void CalibrationNode::on_wall_timer(const ros::WallTimerEvent&) {
+  // The sim-time timer stops with the clock; this one sees a replay that ended at DONE.
+  std::vector<core::RunAction> requests;
+  {
+    std::lock_guard<std::recursive_mutex> lock(mutex_);
+    const ros::Time clock = ros::Time::now();
+    const ros::WallTime wall = ros::WallTime::now();
+    if (clock != last_clock_) {
+      last_clock_ = clock;
+      last_activity_ = wall;
+    }
+    if (!run_.waiting_after_done() ||
+        (wall - last_activity_).toSec() < options_.idle_fit_after_s) {
+      return;
+    }
+    carry_out(run_.on_streams_idle(), &requests);
+    publish_status(clock);
+  }
+  for (const core::RunAction& request : requests) call_controller(request);
 }
 
 void CalibrationNode::call_controller(const core::RunAction& action) {
@@ -266,6 +294,12 @@ void CalibrationNode::publish_certificate(const core::CalibrationReport& report,
                                           const core::AssemblerCounters& counters,
                                           const ros::Time& stamp) {
   result_ = to_msg(report.certificate);
+  result_.quality_pass = report.quality.pass;
+  result_.quality_reasons = report.quality.reasons;
+  if (!report.quality.pass) {
+    ROS_ERROR("calibration: the result fails the quality gate: %s",
+              report.quality.summary().c_str());
+  }
   result_.header.stamp = stamp;
   result_.header.frame_id = options_.frame_id;
   result_pub_.publish(result_);
@@ -356,6 +390,12 @@ bool CalibrationNode::on_get_intrinsics(GetIntrinsics::Request&, GetIntrinsics::
     return true;
   }
   res.result = result_;
+  if (!result_.quality_pass) {
+    // The result is there to look at, but it is not a calibration.
+    res.success = false;
+    res.message = "the result fails the quality gate: " + core::Quality{false, result_.quality_reasons}.summary();
+    return true;
+  }
   std::ostringstream s;
   s << result_.model << " fit of " << result_.positions[0] << "/" << result_.positions[1] << "/"
     << result_.positions[2] << " dwells (x/y/z), reduced chi2 " << result_.reduced_chi2

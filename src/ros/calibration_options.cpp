@@ -37,6 +37,8 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
           o.calibrate.fit.local_gravity < 9.9,
       pnh, "local_gravity",
       "must be in (9.7, 9.9) m/s^2 (got " + std::to_string(o.calibrate.fit.local_gravity) + ")");
+  read_param(pnh, "output_unit", &o.calibrate.output_unit);
+  require(!o.calibrate.output_unit.empty(), pnh, "output_unit", "must not be empty (m/s^2)");
   read_param(pnh, "min_positions_per_phase", &o.calibrate.fit.min_positions_per_phase);
   require(o.calibrate.fit.min_positions_per_phase >= 3, pnh, "min_positions_per_phase",
           "must be >= 3");
@@ -99,6 +101,13 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
   o.run.retry_on_fault = on_fault == "retry";
   read_param(pnh, "max_retries", &o.run.max_retries);
   require(o.run.max_retries <= 100, pnh, "max_retries", "must be in [0, 100]");
+  // Clocks (DESIGN.md section 5).
+  read_param(pnh, "imu_time_offset_s", &o.run.imu_time_offset_s);
+  require(std::isfinite(o.run.imu_time_offset_s), pnh, "imu_time_offset_s", "must be finite (s)");
+  read_param(pnh, "clock_check", &o.run.check_clock);
+  read_param(pnh, "idle_fit_after_s", &o.idle_fit_after_s);
+  require(std::isfinite(o.idle_fit_after_s) && o.idle_fit_after_s > 0.0, pnh, "idle_fit_after_s",
+          "must be > 0 s");
   read_param(pnh, "gimbal_controller", &o.gimbal_controller);
   require(!o.gimbal_controller.empty(), pnh, "gimbal_controller", "must not be empty");
 

@@ -191,23 +191,34 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
   return input;
 }
 
-// Each phase present with enough dwells; named in the message when not.
-void check_phases(const core::PositionTable& table, int min_positions) {
+// The phases the model needs, named in the message when missing. eq4 fits each phase: all
+// three with enough dwells. joint takes what determines S and O (the fit checks that): a gimbal
+// run missing a phase is fitted and marked incomplete, naming the phase.
+void check_phases(const core::PositionTable& table, core::FitModel model, int min_positions,
+                  io::ResultContext* context) {
   const std::array<int, 3> counts = core::positions_per_phase(table);
   std::ostringstream tally;
   tally << "dwells per phase: x=" << counts[0] << ", y=" << counts[1] << ", z=" << counts[2];
+  const bool known_orientations = core::rows_with_direction(table) > 0;
   for (core::Phase p : core::kPhases) {
-    if (counts[core::index(p)] == 0) {
+    if (counts[core::index(p)] != 0 || known_orientations) continue;
+    if (model == core::FitModel::Eq4) {
       throw Failure{kOfflineFitBadInput, std::string("phase ") + core::phase_name(p) +
-                                             " is missing (" + tally.str() + ")"};
+                                             " is missing (" + tally.str() +
+                                             "); eq4 needs all three, joint fits without it"};
     }
+    context->complete = false;
+    context->warnings.push_back(std::string("phase ") + core::phase_name(p) +
+                                " is missing: fitted by joint from the other phases (" +
+                                tally.str() + ")");
   }
   for (core::Phase p : core::kPhases) {
-    if (counts[core::index(p)] < min_positions) {
+    const int count = counts[core::index(p)];
+    if (count > 0 && count < min_positions) {
       throw Failure{kOfflineFitBadInput,
                     std::string("too few dwells in phase ") + core::phase_name(p) + ": " +
-                        std::to_string(counts[core::index(p)]) + ", at least " +
-                        std::to_string(min_positions) + " needed (" + tally.str() + ")"};
+                        std::to_string(count) + ", at least " + std::to_string(min_positions) +
+                        " needed (" + tally.str() + ")"};
     }
   }
 }
@@ -258,8 +269,9 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   options.fit.local_gravity = args.gravity;
   options.analyze = args.analyze;
 
-  const Input input = args.bags.empty() ? read_csv_input(args) : read_bag_input(args, err);
-  check_phases(input.table, options.fit.min_positions_per_phase);
+  options.output_unit = args.output_unit;
+  Input input = args.bags.empty() ? read_csv_input(args) : read_bag_input(args, err);
+  check_phases(input.table, options.fit.model, options.fit.min_positions_per_phase, &input.context);
 
   core::CalibrationReport report;
   try {

@@ -148,7 +148,13 @@ TEST(Calibrate, WithoutAnalysisOnlyTheFitAndAFailedFitThrows) {
   no_z.rows.erase(std::remove_if(no_z.rows.begin(), no_z.rows.end(),
                                  [](const DwellRecord& r) { return r.phase == Phase::Z; }),
                   no_z.rows.end());
-  EXPECT_THROW(calibrate(no_z, &run.raw, analyzing_options()), FitError);
+  EXPECT_THROW(calibrate(no_z, &run.raw, options), FitError);  // eq4 needs the three phases
+  // joint fits two phases, but not one: the component along the rotation axis is unobservable.
+  PositionTable x_only = no_z;
+  x_only.rows.erase(std::remove_if(x_only.rows.begin(), x_only.rows.end(),
+                                   [](const DwellRecord& r) { return r.phase == Phase::Y; }),
+                    x_only.rows.end());
+  EXPECT_THROW(calibrate(x_only, &run.raw, analyzing_options()), FitError);
 }
 
 }  // namespace

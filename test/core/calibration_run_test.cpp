@@ -60,6 +60,14 @@ class FakeStand {
     stream_ = kept;
   }
 
+  // The IMU stamps its samples on a clock `offset_s` ahead of the gimbal's (they still arrive
+  // when they are taken).
+  void shift_imu_clock(double offset_s) {
+    for (StreamEvent& e : stream_) {
+      if (!e.is_command) e.sample.stamp_s += offset_s;
+    }
+  }
+
   // The first pass keeps only `n` samples of the dwell in `interval`.
   void keep_first_samples_of(std::pair<double, double> interval, int n) {
     int kept = 0;
@@ -263,6 +271,30 @@ TEST(CalibrationRun, CleanRunEndsWithOneFitOfEveryDwell) {
   EXPECT_EQ(s.dwells_discarded, 0u);
   EXPECT_TRUE(stand.resumes_.empty());
   EXPECT_TRUE(stand.aborts_.empty());
+}
+
+TEST(CalibrationRun, ImuOnAnotherClockFailsWithTheOffsetInsteadOfFitting) {
+  FakeStand stand;
+  stand.shift_imu_clock(1.3);
+  CalibrationRun run(options_for(4));
+  stand.play(&run);
+  EXPECT_EQ(run.state(), RunState::FitFailed);
+  EXPECT_TRUE(stand.fitted_.empty());
+  const std::string error = run.status(stand.now_s_).fit_error;
+  EXPECT_NE(error.find("IMU stamps are 1.3"), std::string::npos) << error;
+  EXPECT_NE(error.find("pass imu_time_offset_s -1.3"), std::string::npos) << error;
+  EXPECT_NE(run.missing_message().find("clocks not synchronized"), std::string::npos);
+
+  // The offset given: the stamps agree and the run is fitted.
+  FakeStand fixed_stand;
+  fixed_stand.shift_imu_clock(1.3);
+  RunOptions fixed = options_for(4);
+  fixed.imu_time_offset_s = -1.3;
+  CalibrationRun fixed_run(fixed);
+  fixed_stand.play(&fixed_run);
+  EXPECT_EQ(fixed_run.state(), RunState::Done);
+  ASSERT_EQ(fixed_stand.fitted_.size(), 1u);
+  expect_complete_table(fixed_stand.fitted_[0], 4);
 }
 
 TEST(CalibrationRun, TooFewSamplesAreMeasuredAgainOnRetry) {

@@ -304,7 +304,10 @@ TEST(FitBadInput, BadOptions) {
   opt = FitOptions();
   opt.min_positions_per_phase = 2;
   EXPECT_NE(fit_error(good_table(), opt).find("min_positions_per_phase"), std::string::npos);
-  EXPECT_EQ(fit_error(PositionTable()), "phase x has 0 dwells, needs at least 3");
+  EXPECT_EQ(fit_error(PositionTable()), "the position table has no dwells");
+  opt = FitOptions();
+  opt.model = FitModel::Eq4;
+  EXPECT_EQ(fit_error(PositionTable(), opt), "phase x has 0 dwells, needs at least 3");
 }
 
 // ---- effect terms ------------------------------------------------------------------------

@@ -23,9 +23,10 @@ namespace oc = offline_compare;
 
 namespace {
 
-// A run as the stand would record it: stamps from t = 1000 s, bag time = stamp, and 3 s of
-// samples after DONE (a recorder keeps running until the result is out).
-void write_simulated_bag(const std::string& path) {
+// A run as the stand would record it: stamps from t = 1000 s, bag time = stamp, and `tail_s` of
+// samples after DONE (a recorder keeps running until the result is out; 0: the bag ends at DONE,
+// and so does the clock of the replay).
+void write_simulated_bag(const std::string& path, double tail_s) {
   core::SimulationOptions sim;
   sim.truth.S << 1.015, 0.012, -0.004, 0.002, 0.985, 0.018, -0.008, 0.011, 1.003;
   sim.truth.O = Eigen::Vector3d(0.04, -0.02, 0.09);
@@ -35,9 +36,11 @@ void write_simulated_bag(const std::string& path) {
   sim.protocol.phase_change_s = 2.0;
   sim.seed = 11;
   core::Recording rec = core::simulate_recording(sim);
-  const double last = rec.samples.back().stamp_s;
-  for (double t = last + 0.01; t < last + 3.0; t += 0.01) {
-    core::ImuSample s = rec.samples.back();
+  const double done = rec.commands.back().stamp_s;
+  while (!rec.samples.empty() && rec.samples.back().stamp_s > done) rec.samples.pop_back();
+  const core::ImuSample last = rec.samples.back();
+  for (double t = done + 0.01; t < done + tail_s; t += 0.01) {
+    core::ImuSample s = last;
     s.stamp_s = t;
     rec.samples.push_back(s);
   }
@@ -54,6 +57,11 @@ void write_simulated_bag(const std::string& path) {
     shifted.stamp_s += 1000.0;
     bag.write("/imu/data_raw", ros::Time(shifted.stamp_s), ai::to_msg(shifted, "dut"));
   }
+  while (c < rec.commands.size()) {  // DONE, when the bag ends with it
+    core::GimbalEvent e = rec.commands[c++];
+    e.stamp_s += 1000.0;
+    bag.write("/gimbal/command", ros::Time(e.stamp_s), ai::to_msg(e));
+  }
   bag.close();
 }
 
@@ -62,7 +70,7 @@ void write_simulated_bag(const std::string& path) {
 TEST(ReplayThroughNode, ReplayLaunchGivesOfflineResult) {
   ros::NodeHandle pnh("~");
   std::string bag, temp_dir;
-  double rate = 4.0, timeout_s = 150.0;
+  double rate = 4.0, timeout_s = 150.0, tail_s = 3.0;
   if (!pnh.getParam("bag", bag)) {
     // A directory of this run's own: parallel or repeated runs never share a bag.
     const char* tmp = std::getenv("TMPDIR");
@@ -73,7 +81,8 @@ TEST(ReplayThroughNode, ReplayLaunchGivesOfflineResult) {
   }
   pnh.getParam("rate", rate);
   pnh.getParam("timeout_s", timeout_s);
-  write_simulated_bag(bag);
+  pnh.getParam("tail_after_done_s", tail_s);
+  write_simulated_bag(bag, tail_s);
 
   const oc::ToolRun r = oc::run_offline_fit({"--bag", bag, "--json", bag + ".json"}, bag + ".err");
   ASSERT_EQ(r.status, 0) << r.err;

@@ -831,20 +831,31 @@ TEST(OfflineFitBadInput, MalformedCsvRowNamesItsLine) {
   EXPECT_FALSE(file_exists(dir.file("bad.json")));
 }
 
+// eq4 needs the three phases; joint fits a run missing one (two phases determine S and O) and
+// marks it incomplete, naming the phase.
 TEST(OfflineFitBadInput, MissingPhaseIsNamed) {
   TempDir dir;
   HandRunOptions o;
   o.phases = {0, 1};
   make_hand_bag(dir.file("xy.bag"), o);
-  ToolRun r = run_tool({"--bag", dir.file("xy.bag"), "--json", dir.file("out.json")}, dir);
+  ToolRun r = run_tool(
+      {"--bag", dir.file("xy.bag"), "--model", "eq4", "--json", dir.file("out.json")}, dir);
   EXPECT_EQ(r.status, 1);
   expect_single_line_error(r, "phase z is missing");
   EXPECT_FALSE(file_exists(dir.file("out.json")));
 
   o.phases = {0, 2};
   make_hand_bag(dir.file("xz.bag"), o);
-  r = run_tool({"--bag", dir.file("xz.bag")}, dir);
+  r = run_tool({"--bag", dir.file("xz.bag"), "--model", "eq4"}, dir);
   expect_single_line_error(r, "phase y is missing");
+
+  r = run_tool({"--bag", dir.file("xz.bag"), "--json", dir.file("xz.json")}, dir);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("warning: incomplete run"), std::string::npos) << r.err;
+  const json j = load_json(dir.file("xz.json"));
+  EXPECT_EQ(j["complete"], false);
+  EXPECT_NE(j["warnings"].dump().find("phase y is missing: fitted by joint"), std::string::npos);
+  EXPECT_EQ(j["positions"]["y"], 0);
 }
 
 TEST(OfflineFitBadInput, TooFewDwells) {

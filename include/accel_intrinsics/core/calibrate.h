@@ -30,6 +30,10 @@ struct CalibrateOptions {
   // Certificate = the analysis' refit when it named effects, else the base fit.
   bool certificate_refit = false;
   QualityOptions quality;  // the gate on the certificate
+  // Unit of the raw outputs (DESIGN.md section 6): "m/s^2" (responsivities dimensionless), or
+  // counts, V, ...: responsivities are then in that unit per m/s^2, and the quality gate checks
+  // their spread only.
+  std::string output_unit = "m/s^2";
 };
 
 struct CalibrationReport {
@@ -43,6 +47,7 @@ struct CalibrationReport {
   // timing_lag_options_beside_screen() (its false-alarm budget beside the dwell screen).
   std::optional<TimingLagEstimate> timing_lag;
   Quality quality;  // of the certificate (DESIGN.md section 5)
+  std::string output_unit = "m/s^2";
 };
 
 // Fit -> analysis -> timing lag -> quality gate. Throws FitError when the fit fails (the message says what is

@@ -32,6 +32,7 @@
 #include <tuple>
 #include <vector>
 
+#include "accel_intrinsics/core/clock_check.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/raw_stream_analysis.h"
@@ -62,6 +63,12 @@ struct RunOptions {
   std::uint32_t max_retries = 2;            // retries of one position before aborting
   bool record_moves = false;                // keep the samples around the moves (timing lag)
   double request_retry_s = 0.5;             // ask an unreachable controller again after this
+  // Added to every IMU stamp (a device clock offset from the gimbal's; DESIGN.md section 5).
+  double imu_time_offset_s = 0.0;
+  // Before fitting, check that IMU and gimbal stamp on one clock (core/clock_check.h); a run on
+  // two clocks fails with the offset found instead of fitting garbage.
+  bool check_clock = true;
+  ClockCheckOptions clock;
 };
 
 // What the run asks of the gimbal controller (ResumeAt, Abort).
@@ -147,6 +154,11 @@ class CalibrationRun {
   // Time passes: releases buffered messages older than now - reorder window, runs the watchdogs,
   // decides to fit after DONE, and hands out a due controller request (ResumeAt or Abort).
   RunActions tick(double now_s);
+  // No further messages or clock ticks are coming (a bag replay that ended at DONE, a stopped
+  // clock): after DONE, the reorder window is taken as passed and the run is fitted now.
+  RunActions on_streams_idle();
+  // DONE came and the run waits for the reorder window to pass in stamp time.
+  bool waiting_after_done() const { return done_pending_; }
   // The reply to a ResumeAt: `reached` false when the controller could not be called (asked
   // again after request_retry_s); else `success`, its message, and the stamp of its MOVING.
   RunActions on_resume_reply(const ControllerRequest& request, bool reached, bool success,
@@ -221,6 +233,7 @@ class CalibrationRun {
   RunOptions options_;
   DwellAssembler assembler_;
   MoveSampleRecorder moves_;
+  ClockCheck clock_check_;
   std::vector<DwellRecord> completed_rows_;
   RunActions actions_;
   PositionTable table_;

@@ -81,8 +81,11 @@ struct FitResult {
   std::string model_label() const;
 };
 
-// Validates the table (finite values, at least min_positions_per_phase dwells per phase, a
-// geometry that determines every vector component) and fits. Throws FitError otherwise.
+// Validates the table and fits; throws FitError naming the row, the phase or what is
+// unobservable. eq4: finite values, the three gimbal phases with min_positions_per_phase dwells
+// at three distinct angles each. joint: the same for a complete gimbal run; otherwise any set of
+// orientations (gimbal phases present with min_positions_per_phase dwells, rows with
+// f_x,f_y,f_z) whose unit specific forces determine S and O (DESIGN.md section 6).
 FitResult fit(const PositionTable& table, const FitOptions& options = {});
 
 // Standard error of each dwell mean (std / sqrt(n)); rows with n < 2 or zero std get the median

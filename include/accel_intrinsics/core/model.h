@@ -27,6 +27,10 @@ struct DwellGeometry {
   double angle_rad = 0.0;  // commanded alpha
   double time_s = 0.0;     // time since t0 (first gimbal command); mid-dwell for a dwell mean
   int approach = +1;       // +1 approached with increasing angle, -1 decreasing (backlash)
+  // A known orientation (position table f_x,f_y,f_z): the unit specific force in the DUT frame,
+  // whatever the phase and angle say; the gimbal's angle and axis effects do not apply to it.
+  bool has_direction = false;
+  Eigen::Vector3d direction = Eigen::Vector3d::Zero();
 };
 
 // True gimbal angle for a commanded angle under the angle effects (scale, offset, backlash).
@@ -53,6 +57,7 @@ Eigen::Matrix<T, 3, 1> specific_force(const std::vector<Effect>& terms, const T*
                                       const DwellGeometry& geom, double g) {
   using std::cos;
   using std::sin;
+  if (geom.has_direction) return geom.direction.template cast<T>() * T(g);
   const T alpha = true_angle(terms, values, geom);
   Eigen::Matrix<T, 3, 1> f = in_plane_direction(geom.phase, alpha) * T(g);
   const int p = index(geom.phase);

@@ -1,6 +1,7 @@
 // Dwell means: the streaming accumulator, the position table and its CSV form
 // (DESIGN.md section 2:
-// phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w).
+// phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w, optionally
+// followed by f_x,f_y,f_z: a known orientation, section 6).
 #pragma once
 
 #include <Eigen/Core>
@@ -44,7 +45,16 @@ struct DwellRecord {
   std::uint64_t n = 0;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();  // R_u, R_v, R_w, m/s^2
   Eigen::Vector3d std = Eigen::Vector3d::Zero();   // sample standard deviation, m/s^2
+  // A known orientation instead of (phase, angle) (DESIGN.md section 6: position table columns
+  // f_x,f_y,f_z, phase "-"): the unit specific force in the DUT frame. phase, step and angle are
+  // then labels without meaning; only the joint fit takes such rows.
+  bool has_direction = false;
+  Eigen::Vector3d direction = Eigen::Vector3d::Zero();
 };
+
+// The unit specific force of a row in the DUT frame: its direction, or the gimbal's
+// in_plane_direction(phase, angle).
+Eigen::Vector3d specific_force_direction(const DwellRecord& row);
 
 struct PositionTable {
   std::vector<DwellRecord> rows;
@@ -58,8 +68,9 @@ class PositionTableError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// The CSV header line, exactly as in the contract.
+// The CSV header line, exactly as in the contract, and its extension for known orientations.
 extern const char* const kPositionTableHeader;
+extern const char* const kDirectionColumns;  // ",f_x,f_y,f_z"
 
 // Reads a position table. Throws PositionTableError naming the line number and the field for a
 // missing header, wrong column count, unparsable or non-finite number, unknown phase, n = 0.
@@ -97,8 +108,10 @@ std::vector<DwellGeometry> dwell_geometries(const PositionTable& table);
 int approach_of_appended_row(const PositionTable& table, Phase phase, double angle_rad);
 double effective_time_origin(const PositionTable& table);
 
-// Dwells per phase.
+// Gimbal dwells per phase (rows with a direction of their own are not counted).
 std::array<int, 3> positions_per_phase(const PositionTable& table);
+// Rows that give their orientation as a direction (f_x,f_y,f_z).
+std::size_t rows_with_direction(const PositionTable& table);
 
 }  // namespace core
 }  // namespace accel_intrinsics

@@ -51,6 +51,9 @@ struct CalibrationOptions {
   double imu_coalesce_s = 0.001;  // nap of the network thread woken from idle, s
   bool resume = false;            // reload the checkpoint of output_dir at start
   std::string gimbal_controller = "gimbal_controller";  // the controller's node name (relative)
+  // After DONE, wall time without a message or clock tick after which the run is fitted although
+  // the reorder window has not passed in stamp time (a replay that ended at DONE).
+  double idle_fit_after_s = 1.0;
 
   // Reads the private parameters; throws ParamError naming the parameter.
   static CalibrationOptions load(const ros::NodeHandle& pnh);
@@ -73,6 +76,9 @@ class CalibrationNode {
   void on_imu(const sensor_msgs::Imu::ConstPtr& msg) { handle_imu(*msg); }
   void on_progress(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg);
   void on_timer(const ros::TimerEvent&);
+  // Wall-time watch of a stream that stopped after DONE (see idle_fit_after_s).
+  void on_wall_timer(const ros::WallTimerEvent&);
+  void note_activity();  // a message came (under the lock)
   bool on_get_intrinsics(GetIntrinsics::Request& req, GetIntrinsics::Response& res);
   bool on_reset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool on_analyze(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
@@ -119,6 +125,9 @@ class CalibrationNode {
   ros::Publisher result_pub_, status_pub_, analysis_pub_;
   ros::ServiceServer get_srv_, reset_srv_, analyze_srv_;
   ros::Timer timer_;
+  ros::WallTimer wall_timer_;
+  ros::WallTime last_activity_;  // wall time of the last message or clock change
+  ros::Time last_clock_;         // ros::Time::now() at the last wall tick
   std::unique_ptr<diagnostic_updater::Updater> updater_;
 
   IntrinsicResult result_;            // the latest certificate

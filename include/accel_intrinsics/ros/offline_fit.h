@@ -5,6 +5,11 @@
 //   offline_fit (--bag FILE|DIR [--bag ...] | --csv FILE) [--imu-topic T] [--command-topic T]
 //               [--gravity G] [--model joint|eq4] [--analyze] [--json OUT] [--csv-out FILE]
 //               [--settle-discard SECONDS] [--imu-time-offset SECONDS] [--skip-clock-check]
+//               [--output-unit UNIT]
+//
+// The joint model takes any set of known orientations (position table rows with f_x,f_y,f_z)
+// that determines S and O, and a gimbal run missing a phase when the others determine S: the
+// result is then marked incomplete, naming the phase. eq4 needs the three phases.
 //
 // A run split over several bags (rosbag record --split) is read as one: --bag repeated, or a
 // directory of bags. Before fitting a bag, the clock check (core/clock_check.h) makes sure the
@@ -56,6 +61,7 @@ struct OfflineFitArguments {
   std::string csv_out;
   double settle_discard_s = 0.0;
   double imu_time_offset_s = 0.0;  // added to every IMU stamp
+  std::string output_unit = "m/s^2";  // unit of the raw outputs (counts, V, ...)
   bool skip_clock_check = false;
   // Given explicitly (they apply to --bag only, and are refused with --csv).
   bool imu_topic_given = false;
