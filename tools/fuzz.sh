@@ -13,6 +13,9 @@
 #                   workspace $ACCEL_WS (configured here if it is not yet).
 # Environment: FUZZ_SECONDS, FUZZ_TARGETS, FUZZ_BUILD_DIR (default /tmp/accel_intrinsics_fuzz),
 #   FUZZ_JOBS (parallel libFuzzer workers per target, default 1), ACCEL_WS, ACCEL_JOBS.
+# Exit status: 0 when every target ran its time without a finding; 1 when a target crashed,
+# hung, ran out of memory or a sanitizer reported (the input is in fuzz/crashes/), or a target
+# did not build.
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 command -v clang++ >/dev/null || { apt-get install -y -qq clang libclang-rt-14-dev >/dev/null; }
 seconds="${FUZZ_SECONDS:-60}"
@@ -20,6 +23,7 @@ targets="${FUZZ_TARGETS:-position_table bag_input}"
 workers="${FUZZ_JOBS:-1}"
 out="${FUZZ_BUILD_DIR:-/tmp/accel_intrinsics_fuzz}"
 mkdir -p "$out" "$REPO_DIR/fuzz/crashes"
+findings=0
 sanitize=(-fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined)
 flags=(-std=c++17 -O1 -g "${sanitize[@]}" -I"$REPO_DIR/include" -I/usr/include/eigen3)
 
@@ -32,10 +36,17 @@ run_target() {
   echo "[fuzz] running ${name}_fuzz for ${seconds}s ($workers worker(s))"
   local extra=()
   [ "$workers" -gt 1 ] && extra=(-fork="$workers" -ignore_crashes=1)
+  local status=0
   "$out/${name}_fuzz" -max_total_time="$seconds" -print_final_stats=1 "${extra[@]}" "$@" \
-    -artifact_prefix="$REPO_DIR/fuzz/crashes/" "$work_corpus" >"$out/$name.log" 2>&1 || true
+    -artifact_prefix="$REPO_DIR/fuzz/crashes/" "$work_corpus" >"$out/$name.log" 2>&1 || status=$?
   grep -E "^stat::number_of_executed_units|^stat::average_exec_per_sec|^stat::peak_rss_mb|SUMMARY|Test unit written|^#[0-9]+ *DONE" \
     "$out/$name.log" | tail -n 8
+  # libFuzzer exits non-zero on a crash, a timeout or an out-of-memory; with -fork the crashes
+  # are ignored, so the log decides too.
+  if [ "$status" -ne 0 ] || grep -qE "^SUMMARY: |Test unit written|ERROR: libFuzzer" "$out/$name.log"; then
+    echo "[fuzz] $name: FINDING (exit status $status; inputs in $REPO_DIR/fuzz/crashes/)"
+    findings=$((findings + 1))
+  fi
   echo "[fuzz] $name: full log in $out/$name.log"
 }
 
@@ -44,7 +55,8 @@ if [[ " $targets " == *" position_table "* ]]; then
                 "$REPO_DIR/src/core/effects.cpp" "$REPO_DIR/src/core/model.cpp"
                 "$REPO_DIR/src/core/constants.cpp")
   echo "[fuzz] building position_table_fuzz"
-  clang++ "${flags[@]}" "$REPO_DIR/fuzz/position_table_fuzz.cpp" "${core_sources[@]}" -o "$out/position_table_fuzz"
+  clang++ "${flags[@]}" "$REPO_DIR/fuzz/position_table_fuzz.cpp" "${core_sources[@]}" -o "$out/position_table_fuzz" \
+    || { echo "[fuzz] position_table_fuzz did not build"; exit 1; }
   run_target position_table -max_len=4096
 fi
 
@@ -68,11 +80,11 @@ if [[ " $targets " == *" bag_input "* ]]; then
   [ ${#ceres_libs[@]} -gt 0 ] || ceres_libs=(-lceres -lglog -lgflags -llapack -lblas)
   ros_libs=(-lrosbag_storage -lroslz4 -llz4 -lroscpp_serialization -lrostime -lcpp_common -lconsole_bridge
             -lclass_loader -lboost_filesystem -lboost_system -lboost_regex -lpthread -fopenmp)
-  bag_sources=("$REPO_DIR/src/ros/bag_input.cpp" "$REPO_DIR/src/ros/conversions.cpp"
+  bag_sources=("$REPO_DIR/src/ros/bag_input.cpp" "$REPO_DIR/src/ros/bag_format.cpp"
+               "$REPO_DIR/src/ros/bag_topics.cpp" "$REPO_DIR/src/ros/conversions.cpp"
                "$REPO_DIR/fuzz/bag_input_fuzz.cpp")
-  for core in dwell_assembler position_table protocol effects model constants fit intrinsics; do
-    bag_sources+=("$REPO_DIR/src/core/$core.cpp")
-  done
+  # The whole core (conversions.cpp reaches the calibration run's status names).
+  for core in "$REPO_DIR"/src/core/*.cpp; do bag_sources+=("$core"); done
   obj_dir="$out/bag_input_obj"
   mkdir -p "$obj_dir"
   echo "[fuzz] building bag_input_fuzz (${#bag_sources[@]} sources, -j${ACCEL_JOBS:-$(nproc)})"
@@ -91,7 +103,7 @@ if [[ " $targets " == *" bag_input "* ]]; then
   done
   for pid in "${pids[@]}"; do wait "$pid" || exit 1; done
   clang++ "${sanitize[@]}" "${objects[@]}" "${ros_libs[@]}" "${ceres_libs[@]}" -o "$out/bag_input_fuzz" \
-    2> >(grep -v "^/usr/bin/ld: warning" >&2)
+    2> >(grep -v "^/usr/bin/ld: warning" >&2) || { echo "[fuzz] bag_input_fuzz did not build"; exit 1; }
   seeds="$REPO_DIR/fuzz/corpus/bag_input"
   if ! ls "$seeds"/run_*.bag >/dev/null 2>&1; then
     echo "[fuzz] writing the seed bags into $seeds"
@@ -104,3 +116,9 @@ if [[ " $targets " == *" bag_input "* ]]; then
   # allocate gigabytes. Seeds stay under 20 kB.
   run_target bag_input -max_len=20000 -timeout=10 -rss_limit_mb=2048
 fi
+
+if [ "$findings" -gt 0 ]; then
+  echo "[fuzz] $findings target(s) with findings"
+  exit 1
+fi
+echo "[fuzz] no findings"

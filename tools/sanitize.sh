@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the tests with AddressSanitizer + UndefinedBehaviorSanitizer (cmake -DACCEL_SANITIZE=ON)
-# in a workspace of their own and runs them: core_tests (ROS-free) always, ros_unit_tests when it
-# builds (skip it with ACCEL_SANITIZE_ROS=0). Any sanitizer report (ASan, LeakSanitizer, UBSan
+# in a workspace of their own and runs them: core_tests (ROS-free) and ros_unit_tests (skip the
+# latter with ACCEL_SANITIZE_ROS=0); a target that does not build fails the run. Any sanitizer report (ASan, LeakSanitizer, UBSan
 # "runtime error") fails the run. Ends with one line "N passed, N failed" (gtest cases, plus one
 # failure per binary that a sanitizer stopped or that reported an error).
 #
@@ -29,11 +29,15 @@ if ! bash "$REPO_DIR/tools/build.sh" core_tests >"$log_dir/build_core.log" 2>&1;
 fi
 binaries=(core_tests)
 if [ "${ACCEL_SANITIZE_ROS:-1}" != 0 ]; then
-  echo "[sanitize] building ros_unit_tests (optional)"
+  echo "[sanitize] building ros_unit_tests (ACCEL_SANITIZE_ROS=0 skips them)"
   if bash "$REPO_DIR/tools/build.sh" ros_unit_tests >"$log_dir/build_ros_unit.log" 2>&1; then
     binaries+=(ros_unit_tests)
   else
-    echo "[sanitize] ros_unit_tests did not build; skipped (log: $log_dir/build_ros_unit.log)"
+    # A target that does not build is a failure, not a skip.
+    tail -n 30 "$log_dir/build_ros_unit.log"
+    echo "[sanitize] ros_unit_tests did not build (log: $log_dir/build_ros_unit.log)"
+    echo "0 passed, 1 failed"
+    exit 1
   fi
 fi
 

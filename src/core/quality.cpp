@@ -47,8 +47,9 @@ Quality assess_quality(const FitResult& fit, const PositionTable& table,
     std::ostringstream s;
     s << "reduced chi-square " << fit.reduced_chi2 << " is far above its "
       << 100.0 * options.chi2_band << " % band (upper end " << upper << " for " << fit.dof
-      << " degrees of freedom): the model does not describe the data (wrong clock, table or "
-         "units?)";
+      << " degrees of freedom): the model does not describe the data (a wrong clock, table or "
+         "unit, or a large effect the model lacks: the analysis names it, certificate_model "
+         "refit fits it)";
     fail(s.str());
   }
   const Eigen::Vector3d r = fit.intrinsics.responsivity;

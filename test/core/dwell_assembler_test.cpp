@@ -168,6 +168,25 @@ TEST(DwellAssembler, ShuffledAndDuplicatedSamplesGiveTheSameTable) {
   EXPECT_EQ(messy.counters().samples_used, in_order.counters().samples_used);
 }
 
+TEST(DwellAssembler, SampleLaterThanTheWindowIsDroppedAndCounted) {
+  // A sample that arrives 0.5 s after newer ones, with a 0.2 s window: its stamp has been
+  // released already, so it cannot be put in order. It is dropped, counted, and not in the mean.
+  core::AssemblerOptions options;
+  options.reorder_window_s = 0.2;
+  core::DwellAssembler assembler(options);
+  using S = core::GimbalState;
+  assembler.add_command(command(0.0, core::Phase::X, 0, S::Moving));
+  assembler.add_command(command(1.0, core::Phase::X, 0, S::Settled));
+  for (int k = 0; k < 10; ++k) assembler.add_sample(sample(1.0 + 0.1 * k, 2.0));
+  assembler.add_sample(sample(1.25, 100.0));  // late: newest 1.9, released up to 1.7
+  assembler.add_command(command(2.0, core::Phase::X, 1, S::Moving));
+  assembler.flush();
+  EXPECT_EQ(assembler.counters().dropped_late, 1u);
+  ASSERT_EQ(assembler.table().rows.size(), 1u);
+  EXPECT_EQ(assembler.table().rows[0].n, 10u);
+  EXPECT_DOUBLE_EQ(assembler.table().rows[0].mean(0), 2.0);
+}
+
 TEST(DwellAssembler, CallbackFiresOncePerDwellAndResetStartsOver) {
   core::SimulationOptions sim;
   sim.protocol.steps_per_phase = 3;

@@ -987,6 +987,27 @@ TEST(OfflineFit, AnalyzeAddsContractKeysOrRefusesCleanly) {
   }
 }
 
+// --csv with --analyze (a promise of the README): the analysis of a position table, without the
+// raw streams, so without the timing lag; an effect hidden in the table is named.
+TEST(OfflineFit, CsvWithAnalyzeNamesAHiddenEffect) {
+  TempDir dir;
+  core::SimulationOptions sim;
+  sim.truth.S << 1.02, 0.01, -0.005, 0.003, 0.98, 0.02, -0.01, 0.015, 1.005;
+  sim.truth.effects.push_back(core::Effect{core::EffectKind::AngleOffset, 1, 0.0015});  // y, 0.09 deg
+  sim.protocol.steps_per_phase = 12;
+  sim.seed = 5;
+  core::write_position_table_file(dir.file("table.csv"), core::simulate_position_table(sim));
+  const ToolRun r =
+      run_tool({"--csv", dir.file("table.csv"), "--analyze", "--json", dir.file("a.json")}, dir);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json j = load_json(dir.file("a.json"));
+  ASSERT_TRUE(j["effects"].is_array()) << j.dump();
+  ASSERT_FALSE(j["effects"].empty()) << j["effects"].dump();
+  EXPECT_NE(j["effects"].dump().find("angle_offset"), std::string::npos) << j["effects"].dump();
+  EXPECT_FALSE(j.contains("timing_lag")) << "a table has no raw streams";
+  EXPECT_TRUE(j["quality"]["pass"].get<bool>());
+}
+
 // ---- bag_input API
 // --------------------------------------------------------------------------------
 

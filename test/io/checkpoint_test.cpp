@@ -1,0 +1,130 @@
+// The checkpoint files: a kill in the middle of writing a row leaves a torn last line, which
+// load() drops (from the file too) so the restored table holds the complete rows only and the
+// run continues appending after them; a broken state file is an error naming it, never a fresh
+// run in disguise.
+#include "accel_intrinsics/io/checkpoint.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "accel_intrinsics/io/atomic_file.h"
+
+namespace accel_intrinsics {
+namespace io {
+namespace {
+
+struct TempDir {
+  std::string path;
+  TempDir() {
+    char templ[] = "/tmp/checkpoint_test_XXXXXX";
+    path = ::mkdtemp(templ);
+  }
+  ~TempDir() { std::filesystem::remove_all(path); }
+};
+
+core::DwellRecord row(core::Phase phase, std::uint32_t step) {
+  core::DwellRecord r;
+  r.phase = phase;
+  r.step = step;
+  r.angle_rad = 0.5 * step;
+  r.t_start_s = 10.0 * step;
+  r.t_end_s = 10.0 * step + 5.0;
+  r.n = 100 + step;
+  r.mean = Eigen::Vector3d(0.1 * step, 0.2, 9.8);
+  r.std = Eigen::Vector3d(0.01, 0.02, 0.03);
+  return r;
+}
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+TEST(Checkpoint, TornLastLineIsDroppedAndTheRunContinuesAfterTheCompleteRows) {
+  TempDir dir;
+  {
+    CheckpointFiles files(dir.path, "rig1_");
+    for (std::uint32_t k = 0; k < 3; ++k) files.append_row(row(core::Phase::X, k));
+    core::CheckpointState state;
+    state.time_origin_s = 123.5;
+    state.steps = 6;
+    files.write_state(state);
+  }
+  const std::string table_path = dir.path + "/rig1_position_table.csv";
+  {
+    // The kill: half of the fourth row reached the disk.
+    std::ofstream out(table_path, std::ios::app);
+    out << "x,3,1.5,30,35,10";
+  }
+  CheckpointFiles files(dir.path, "rig1_");
+  const std::optional<CheckpointFiles::Restored> restored = files.load();
+  ASSERT_TRUE(restored.has_value());
+  EXPECT_TRUE(restored->dropped_torn_line);
+  ASSERT_EQ(restored->table.rows.size(), 3u);
+  EXPECT_EQ(restored->state.rows, 3u);
+  EXPECT_EQ(restored->state.steps, 6u);
+  EXPECT_EQ(restored->table.time_origin_s, 123.5);
+  for (std::uint32_t k = 0; k < 3; ++k) {
+    EXPECT_EQ(restored->table.rows[k].step, k);
+    EXPECT_EQ(restored->table.rows[k].mean, row(core::Phase::X, k).mean);
+  }
+  const std::string text = read_text(table_path);
+  EXPECT_EQ(text.back(), '\n');
+  EXPECT_EQ(text.find("x,3,1.5,30,35,10"), std::string::npos) << text;
+
+  // The dwell is measured again and appended after the complete rows.
+  files.append_row(row(core::Phase::X, 3));
+  CheckpointFiles again(dir.path, "rig1_");
+  const auto reloaded = again.load();
+  ASSERT_TRUE(reloaded.has_value());
+  EXPECT_FALSE(reloaded->dropped_torn_line);
+  ASSERT_EQ(reloaded->table.rows.size(), 4u);
+  EXPECT_EQ(reloaded->table.rows[3].step, 3u);
+  EXPECT_EQ(reloaded->table.rows[3].n, 103u);
+}
+
+TEST(Checkpoint, NoStateFileMeansNoCheckpoint) {
+  TempDir dir;
+  CheckpointFiles files(dir.path, "");
+  EXPECT_FALSE(files.load().has_value());
+  CheckpointFiles disabled("", "");
+  EXPECT_FALSE(disabled.enabled());
+  EXPECT_FALSE(disabled.load().has_value());
+}
+
+TEST(Checkpoint, BrokenStateFileIsAnErrorNamingIt) {
+  TempDir dir;
+  CheckpointFiles files(dir.path, "");
+  files.append_row(row(core::Phase::Y, 0));
+  {
+    std::ofstream out(files.state_path());
+    out << "time_origin_s: [not, a, number\n";
+  }
+  try {
+    files.load();
+    FAIL() << "a broken state file was accepted";
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find(files.state_path()), std::string::npos) << e.what();
+  }
+}
+
+TEST(Checkpoint, ClearRemovesBothFiles) {
+  TempDir dir;
+  CheckpointFiles files(dir.path, "");
+  files.append_row(row(core::Phase::Z, 1));
+  files.write_state(core::CheckpointState());
+  ASSERT_TRUE(std::filesystem::exists(files.table_path()));
+  files.clear();
+  EXPECT_FALSE(std::filesystem::exists(files.table_path()));
+  EXPECT_FALSE(std::filesystem::exists(files.state_path()));
+}
+
+}  // namespace
+}  // namespace io
+}  // namespace accel_intrinsics
