@@ -8,6 +8,7 @@
 #include <string>
 
 #include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/io/exporters.h"
 
 namespace ai = accel_intrinsics;
 
@@ -40,6 +41,11 @@ int main(int argc, char** argv) {
                                 "settle_discard_s")
                      ->type_name("SECONDS")
                      ->capture_default_str();
+  app.add_option("--export", args.exports,
+                 "write the calibration for another tool (repeatable): NAME=FILE, NAME one of " +
+                     ai::io::export_format_list())
+      ->type_name("NAME=FILE")
+      ->take_all();
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

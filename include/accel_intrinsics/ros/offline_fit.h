@@ -4,7 +4,7 @@
 //
 //   offline_fit (--bag FILE | --csv FILE) [--imu-topic T] [--command-topic T] [--gravity G]
 //               [--model joint|eq4] [--analyze] [--json OUT] [--csv-out FILE]
-//               [--settle-discard SECONDS]
+//               [--settle-discard SECONDS] [--export NAME=FILE]...
 //
 // The bag goes through core::DwellAssembler (bag_input.h), the dwell assignment of the
 // calibration node, and the table through core::calibrate(), the node's pipeline, so the result
@@ -16,10 +16,16 @@
 // --settle-discard (default 0) drops the samples of the first SECONDS of each dwell (after
 // SETTLED), as the calibration node's settle_discard_s does: for a gimbal that still rings when
 // it reports settled. Bags only.
+//
+// --export NAME=FILE (repeatable) writes the certificate for another tool (io/exporters.h:
+// imu_calib, imucal, kalibr, imu_tk, px4, ardupilot), with the result files, all or nothing;
+// what a format leaves out (px4/ardupilot: the largest error over all orientations) goes to
+// stderr as "offline_fit: note: ...".
 #pragma once
 
 #include <iosfwd>
 #include <string>
+#include <vector>
 
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/ros/names.h"
@@ -47,6 +53,7 @@ struct OfflineFitArguments {
   std::string json_out;  // "-": standard output (the text report then goes to `err`)
   std::string csv_out;
   double settle_discard_s = 0.0;
+  std::vector<std::string> exports;  // "NAME=FILE", each parsed by io::parse_export_spec
   // Given explicitly (they apply to --bag only, and are refused with --csv).
   bool imu_topic_given = false;
   bool command_topic_given = false;
