@@ -11,6 +11,7 @@ CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
   report.certificate_refit_policy = options.certificate_refit;
   report.base_fit = fit(table, options.fit);
   report.certificate = report.base_fit;
+  report.noise = dwell_noise(table);
   if (!options.analyze) return report;
 
   AnalysisOptions analysis_options = options.analysis;

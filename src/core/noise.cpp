@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 namespace accel_intrinsics {
 namespace core {
@@ -197,6 +198,30 @@ AllanCurve overlapping_allan_deviation(const std::vector<Eigen::Vector3d>& sampl
   return curve;
 }
 
+StaticRecordNoise analyze_static_record(const std::vector<double>& stamps_s,
+                                        const std::vector<Eigen::Vector3d>& outputs) {
+  const std::size_t n = outputs.size();
+  if (stamps_s.size() != n) throw std::invalid_argument("stamps and outputs differ in number");
+  if (n < 100) {
+    throw std::invalid_argument("a static record needs at least 100 samples (got " +
+                                std::to_string(n) + ")");
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(stamps_s[i]) || !outputs[i].allFinite()) {
+      throw std::invalid_argument("sample " + std::to_string(i) + " is not finite");
+    }
+    if (i > 0 && !(stamps_s[i] > stamps_s[i - 1])) {
+      throw std::invalid_argument("stamps do not increase at sample " + std::to_string(i));
+    }
+  }
+  StaticRecordNoise out;
+  out.duration_s = stamps_s.back() - stamps_s.front();
+  out.rate_hz = static_cast<double>(n - 1) / out.duration_s;
+  out.curve = overlapping_allan_deviation(outputs, out.rate_hz);
+  for (int a = 0; a < 3; ++a) out.axes[a] = noise_parameters(out.curve, a);
+  return out;
+}
+
 NoiseParameters noise_parameters(const AllanCurve& curve, int axis) {
   if (axis < 0 || axis > 2) throw std::invalid_argument("noise_parameters: axis must be 0, 1 or 2");
   const std::size_t n = curve.tau_s.size();
@@ -260,6 +285,7 @@ NoiseParameters noise_parameters(const AllanCurve& curve, int axis) {
   out.bias_instability = curve.adev[i_min](axis) / kBiasInstabilityFloor;
   out.bias_instability_std = out.bias_instability * curve.relative_std[i_min];
   out.bias_instability_tau_s = curve.tau_s[i_min];
+  out.bias_instability_floor_seen = i_min + 1 < n;
   return out;
 }
 

@@ -321,6 +321,8 @@ CalibrationToExport calibration_to_export(const StoredResult& result, const std:
     targets.push_back(e.target);
   }
   c.terms_left_out = terms_of(names, targets);
+  c.noise_density = result.noise_density;
+  c.rate_hz = result.sample_rate_hz;
   c.source = source;
   return c;
 }
@@ -338,6 +340,16 @@ CalibrationToExport calibration_to_export(const core::FitResult& fit, const std:
   }
   c.terms_left_out = terms_of(names, targets);
   c.source = source;
+  return c;
+}
+
+CalibrationToExport calibration_to_export(const core::CalibrationReport& report,
+                                          const std::string& source) {
+  CalibrationToExport c = calibration_to_export(report.certificate, source);
+  if (report.noise) {
+    c.noise_density = report.noise->density;
+    c.rate_hz = report.noise->rate_hz;
+  }
   return c;
 }
 

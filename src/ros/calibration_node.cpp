@@ -290,7 +290,7 @@ void CalibrationNode::publish_certificate(const core::CalibrationReport& report,
 void CalibrationNode::write_exports(const core::CalibrationReport& report) {
   if (options_.exports.empty()) return;
   const io::CalibrationToExport calibration =
-      io::calibration_to_export(report.certificate, files_.result_path());
+      io::calibration_to_export(report, files_.result_path());
   for (io::ExportFormat format : options_.exports) {
     const std::string path = files_.file_path(io::export_file_name(format));
     try {

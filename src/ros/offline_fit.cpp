@@ -253,7 +253,7 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
 
   // Exports of the certificate, prepared before any file is written.
   io::CalibrationToExport calibration = io::calibration_to_export(
-      report.certificate, std::string(kOfflineFitProgram) + " result of " +
+      report, std::string(kOfflineFitProgram) + " result of " +
                               (args.bag.empty() ? args.csv : args.bag) +
                               (args.json_out.empty() || args.json_out == "-" ? ""
                                                                             : " (" + args.json_out + ")"));

@@ -174,6 +174,7 @@ TEST_F(NoiseParametersTest, BiasInstabilityWithinFactor1Point5) {
   EXPECT_GT(p.bias_instability, truth / 1.5);
   EXPECT_LT(p.bias_instability, truth * 1.5);
   // Its tau lies between the white-noise and the random-walk crossings of the floor.
+  EXPECT_TRUE(p.bias_instability_floor_seen);
   EXPECT_GT(p.bias_instability_tau_s, 4.0);
   EXPECT_LT(p.bias_instability_tau_s, 300.0);
 }
@@ -181,6 +182,7 @@ TEST_F(NoiseParametersTest, BiasInstabilityWithinFactor1Point5) {
 TEST_F(NoiseParametersTest, PureWhiteNoiseShowsNoRandomWalkAboveItsUncertainty) {
   const NoiseParameters p = noise_parameters(*curve_, 1);
   EXPECT_EQ(p.random_walk_points, 0);
+  EXPECT_FALSE(p.bias_instability_floor_seen);
   EXPECT_LE(p.random_walk, p.random_walk_std);
   // ... and that uncertainty is far below the random walk of the other axes: it would be seen.
   EXPECT_LT(p.random_walk_std, 0.3 * record_->walk(0));

@@ -21,6 +21,7 @@
 
 #include "accel_intrinsics/core/calibration_forms.h"
 #include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/noise.h"
 #include "accel_intrinsics/core/simulator.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/result_document.h"
@@ -367,6 +368,8 @@ TEST(Exporters, FromStoredResultFile) {
   TempDir dir;
   CalibrationReport report;
   report.base_fit = report.certificate = fixture().fit;
+  report.noise = dwell_noise(simulate_position_table(device_options(11)));
+  ASSERT_TRUE(report.noise.has_value());
   const std::string result = dir.file("intrinsics.yaml");
   io::write_result_yaml(result, report, io::ResultContext{});
   const io::StoredResult stored = io::read_result_file(result);
@@ -374,6 +377,12 @@ TEST(Exporters, FromStoredResultFile) {
   const io::ExportText t = io::export_text(io::ExportFormat::ImuCalib, c);
   EXPECT_NE(t.text.find(result), std::string::npos);
   EXPECT_TRUE(c.S.isApprox(fixture().fit.S, 1e-12));
+  // The dwells' white noise travels with the result into kalibr's noise key (the largest axis).
+  EXPECT_TRUE(stored.noise_density.isApprox(report.noise->density, 1e-12));
+  EXPECT_NEAR(stored.sample_rate_hz, report.noise->rate_hz, 1e-9);
+  const YAML::Node imu0 = YAML::Load(io::export_text(io::ExportFormat::Kalibr, c).text)["imu0"];
+  EXPECT_DOUBLE_EQ(imu0["accelerometer_noise_density"].as<double>(), report.noise->density.maxCoeff());
+  EXPECT_NEAR(imu0["update_rate"].as<double>(), report.noise->rate_hz, 1e-9);
 }
 
 TEST(Exporters, BadInputIsOneClearLine) {

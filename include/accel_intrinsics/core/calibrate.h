@@ -9,6 +9,7 @@
 
 #include "accel_intrinsics/core/discrepancy.h"
 #include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/noise.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/protocol.h"
 #include "accel_intrinsics/core/raw_stream_analysis.h"
@@ -40,6 +41,8 @@ struct CalibrationReport {
   // When analyze and raw commands were given: estimate_timing_lag with the analysis' refit and
   // timing_lag_options_beside_screen() (its false-alarm budget beside the dwell screen).
   std::optional<TimingLagEstimate> timing_lag;
+  // White noise from the dwells (noise.h), when they hold samples and durations.
+  std::optional<DwellNoise> noise;
 };
 
 // Fit -> analysis -> timing lag. Throws FitError when the fit fails (the message says what is

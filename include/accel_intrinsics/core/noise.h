@@ -70,12 +70,28 @@ struct NoiseParameters {
   double bias_instability = 0.0;  // B, m/s^2
   double bias_instability_std = 0.0;
   double bias_instability_tau_s = 0.0;
+  // False when the minimum is the curve's last point (no floor in the record: B is then only an
+  // upper bound).
+  bool bias_instability_floor_seen = false;
   double random_walk = 0.0;  // K, (m/s^3)/sqrt(Hz)
   double random_walk_std = 0.0;
   int white_points = 0;        // points on the -1/2 line (0: N from the model's a)
   int random_walk_points = 0;  // points on the +1/2 line (0: K from the model's c)
 };
 NoiseParameters noise_parameters(const AllanCurve& curve, int axis);
+
+// A static record analysed (noise_report): the rate from the stamps ((n - 1) / (t_last -
+// t_first)), the Allan curve of the three outputs and N, B, K of each.
+struct StaticRecordNoise {
+  AllanCurve curve;
+  NoiseParameters axes[3];
+  double rate_hz = 0.0;
+  double duration_s = 0.0;
+};
+// Throws std::invalid_argument naming what is wrong: fewer than 100 samples, stamps not
+// increasing (the index of the first one that is not), non-finite outputs.
+StaticRecordNoise analyze_static_record(const std::vector<double>& stamps_s,
+                                        const std::vector<Eigen::Vector3d>& outputs);
 
 // The flat floor of a bias instability B: sqrt(2 ln 2 / pi) B.
 constexpr double kBiasInstabilityFloor = 0.66428;

@@ -70,6 +70,9 @@ struct CalibrationToExport {
 
 CalibrationToExport calibration_to_export(const StoredResult& result, const std::string& source);
 CalibrationToExport calibration_to_export(const core::FitResult& fit, const std::string& source);
+// The certificate with the dwells' white noise.
+CalibrationToExport calibration_to_export(const core::CalibrationReport& report,
+                                          const std::string& source);
 
 struct ExportText {
   std::string text;
