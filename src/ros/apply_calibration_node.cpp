@@ -50,6 +50,10 @@ ApplyCalibrationOptions ApplyCalibrationOptions::load(const ros::NodeHandle& pnh
           "an imu_calib YAML");
   read_param(pnh, "queue_size", &o.queue_size);
   require(o.queue_size >= 1, pnh, "queue_size", "must be >= 1");
+  read_param(pnh, "immediate", &o.immediate);
+  read_param(pnh, "coalesce_s", &o.coalesce_s);
+  require(std::isfinite(o.coalesce_s) && o.coalesce_s >= 0.0 && o.coalesce_s <= 0.05, pnh,
+          "coalesce_s", "must be in [0, 0.05] s");
   try {
     *calibration = io::read_apply_calibration(o.calibration_file);
   } catch (const io::IoError& e) {
@@ -62,8 +66,13 @@ ApplyCalibrationNode::ApplyCalibrationNode(ros::NodeHandle nh, const ApplyCalibr
                                            const io::ApplyCalibration& calibration)
     : applier_(calibration) {
   pub_ = nh.advertise<sensor_msgs::Imu>(names::kCalibratedImuTopic, options.queue_size);
-  sub_ = nh.subscribe(names::kImuTopic, options.queue_size, &ApplyCalibrationNode::on_imu, this,
-                      ros::TransportHints().tcpNoDelay());
+  ros::SubscribeOptions sub_options = ros::SubscribeOptions::create<sensor_msgs::Imu>(
+      names::kImuTopic, options.queue_size,
+      boost::bind(&ApplyCalibrationNode::on_imu, this, boost::placeholders::_1), ros::VoidConstPtr(),
+      options.immediate ? &immediate_queue_ : nullptr);
+  sub_options.transport_hints = ros::TransportHints().tcpNoDelay();
+  immediate_queue_.set_coalesce_period(options.coalesce_s);
+  sub_ = nh.subscribe(sub_options);
   ROS_INFO("apply_calibration: %s from %s (%s), %s -> %s", calibration.kind.c_str(),
            options.calibration_file.c_str(),
            applier_.noise_known() ? "with its noise: covariance filled" : "no noise figures",

@@ -6,7 +6,10 @@
 // field as it is (unknown: -1 or zeros).
 //
 // Parameters (private): calibration_file (required: a result JSON/YAML or an imu_calib YAML),
-// queue_size (default 100). A file that cannot be read refuses the start, naming it.
+// queue_size (default 1000, both ways), immediate (default true: the message is corrected and published in
+// roscpp's network thread, no hand-off to a spinner thread), coalesce_s (default 0.001: after an
+// idle spell the network thread naps this long so that the next messages are read in one go; 0
+// off; see immediate_callback_queue.h). A file that cannot be read refuses the start, naming it.
 #pragma once
 
 #include <ros/ros.h>
@@ -16,6 +19,7 @@
 #include <string>
 
 #include "accel_intrinsics/io/apply_calibration_file.h"
+#include "accel_intrinsics/ros/immediate_callback_queue.h"
 
 namespace accel_intrinsics {
 
@@ -36,7 +40,9 @@ class CalibrationApplier {
 
 struct ApplyCalibrationOptions {
   std::string calibration_file;
-  int queue_size = 100;
+  int queue_size = 1000;
+  bool immediate = true;
+  double coalesce_s = 0.001;
   // Reads the private parameters and the file; throws ParamError naming the parameter (and the
   // file with what is wrong with it).
   static ApplyCalibrationOptions load(const ros::NodeHandle& pnh, io::ApplyCalibration* calibration);
@@ -51,6 +57,7 @@ class ApplyCalibrationNode {
   void on_imu(const sensor_msgs::Imu::ConstPtr& msg);
 
   CalibrationApplier applier_;
+  ImmediateCallbackQueue immediate_queue_;
   ros::Subscriber sub_;
   ros::Publisher pub_;
 };
