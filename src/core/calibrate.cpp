@@ -13,6 +13,7 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
   report.certificate_refit_policy = options.certificate_refit;
   report.base_fit = fit(table, options.fit);
   report.certificate = report.base_fit;
+  report.noise = dwell_noise(table);
   if (!options.analyze) return report;
 
   AnalysisOptions analysis_options = options.analysis;

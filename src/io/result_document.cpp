@@ -272,6 +272,11 @@ nlohmann::json result_document(const core::CalibrationReport& report,
   j["certificate_policy"] = report.certificate_refit_policy ? "refit" : "base";
   j["quality"] = {{"pass", report.quality.pass}, {"reasons", report.quality.reasons}};
   j["output_unit"] = report.output_unit;
+  if (report.noise) {
+    j["noise_density"] = accelerometer_object(report.noise->density);
+    j["noise_density_std"] = accelerometer_object(report.noise->density_std);
+    j["sample_rate_hz"] = number(report.noise->rate_hz);
+  }
   if (report.analysis) {
     // The analysis' keys beside the result's, never replacing one (local_gravity is the same).
     nlohmann::json extra = analysis_json(*report.analysis);
@@ -356,6 +361,11 @@ StoredResult read_result_file(const std::string& path) {
     out.cross_sensitivity.row(i) = r.list3(rows[i], "cross_sensitivity").transpose();
   }
   out.local_gravity = r.scalar(r.child(root, "local_gravity", ""), "local_gravity");
+
+  if (root["noise_density"]) out.noise_density = r.triple("noise_density", kAccelerometers);
+  if (root["sample_rate_hz"]) {
+    out.sample_rate_hz = r.scalar(root["sample_rate_hz"], "sample_rate_hz");
+  }
 
   // The fitted terms: `fitted_effects`; a node YAML before it named them `effects`.
   const char* fitted_key = root["fitted_effects"] ? "fitted_effects" : "effects";

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/io/exporters.h"
 
 namespace ai = accel_intrinsics;
 
@@ -59,6 +60,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--skip-clock-check", args.skip_clock_check,
                "bag only: do not check that IMU and gimbal stamps share one clock");
+  app.add_option("--export", args.exports,
+                 "write the calibration for another tool (repeatable): NAME=FILE, NAME one of " +
+                     ai::io::export_format_list())
+      ->type_name("NAME=FILE")
+      ->take_all();
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

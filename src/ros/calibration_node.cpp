@@ -317,6 +317,23 @@ void CalibrationNode::publish_certificate(const core::CalibrationReport& report,
     context.samples = counters;
     io::write_result_yaml(files_.result_path(), report, context);
     ROS_INFO("calibration: wrote %s", files_.result_path().c_str());
+    write_exports(report);
+  }
+}
+
+void CalibrationNode::write_exports(const core::CalibrationReport& report) {
+  if (options_.exports.empty()) return;
+  const io::CalibrationToExport calibration =
+      io::calibration_to_export(report, files_.result_path());
+  for (io::ExportFormat format : options_.exports) {
+    const std::string path = files_.file_path(io::export_file_name(format));
+    try {
+      const io::ExportText text = io::write_export(path, format, calibration);
+      ROS_INFO("calibration: wrote %s", path.c_str());
+      if (!text.notice.empty()) ROS_WARN("calibration: %s", text.notice.c_str());
+    } catch (const io::IoError& e) {
+      ROS_ERROR("calibration: %s", e.what());
+    }
   }
 }
 

@@ -5,6 +5,8 @@
 
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/ros/calibration_node.h"
+#include "accel_intrinsics/io/atomic_file.h"
+#include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/ros/params.h"
 
 namespace accel_intrinsics {
@@ -120,6 +122,17 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
     require(!ec && std::filesystem::is_directory(o.output_dir), pnh, "output_dir",
             "cannot create directory '" + o.output_dir + "'" + (ec ? ": " + ec.message() : ""));
   }
+  std::vector<std::string> exports;
+  read_param(pnh, "exports", &exports);
+  for (const std::string& name : exports) {
+    try {
+      o.exports.push_back(io::parse_export_format(name));
+    } catch (const io::IoError& e) {
+      throw ParamError("parameter " + param_name(pnh, "exports") + ": " + e.what());
+    }
+  }
+  require(o.exports.empty() || !o.output_dir.empty(), pnh, "exports",
+          "needs output_dir (the files are written there)");
   return o;
 }
 

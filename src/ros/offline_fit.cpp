@@ -12,6 +12,7 @@
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/io/atomic_file.h"
+#include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/io/text_report.h"
 #include "accel_intrinsics/ros/bag_input.h"
@@ -256,6 +257,22 @@ void check_command_line(const OfflineFitArguments& args) {
   if (!args.json_out.empty() && args.json_out == args.csv_out) {
     throw Failure{kOfflineFitBadCommandLine, "--json and --csv-out name the same file"};
   }
+  std::vector<std::string> outputs = {args.json_out, args.csv_out};
+  for (const std::string& spec : args.exports) {
+    std::string path;
+    try {
+      path = io::parse_export_spec(spec).second;
+    } catch (const io::IoError& e) {
+      throw Failure{kOfflineFitBadCommandLine, e.what()};
+    }
+    for (const std::string& other : outputs) {
+      if (!other.empty() && other == path) {
+        throw Failure{kOfflineFitBadCommandLine, "--export " + spec + ": '" + path +
+                                                     "' is already an output of this run"};
+      }
+    }
+    outputs.push_back(path);
+  }
 }
 
 int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
@@ -287,6 +304,28 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   }
   const std::string json = io::result_json_text(report, input.context);
 
+  // Exports of the certificate, prepared before any file is written.
+  std::string source = args.csv;
+  for (const std::string& b : args.bags) source += (source.empty() ? "" : ", ") + b;
+  io::CalibrationToExport calibration = io::calibration_to_export(
+      report, std::string(kOfflineFitProgram) + " result of " + source +
+                              (args.json_out.empty() || args.json_out == "-" ? ""
+                                                                            : " (" + args.json_out + ")"));
+  std::vector<std::pair<std::string, io::ExportText>> exports;
+  // A result that fails the quality gate is not a calibration: nothing for a robot to apply.
+  if (!report.quality.pass && !args.exports.empty()) {
+    err << kOfflineFitProgram
+        << ": warning: no --export written: the result fails the quality gate" << std::endl;
+  }
+  for (const std::string& spec : report.quality.pass ? args.exports : std::vector<std::string>()) {
+    const auto parsed = io::parse_export_spec(spec);
+    try {
+      exports.emplace_back(parsed.second, io::export_text(parsed.first, calibration));
+    } catch (const io::IoError& e) {
+      throw Failure{kOfflineFitBadInput, "--export " + spec + ": " + as_one_line(e.what())};
+    }
+  }
+
   // Outputs: files first (all or nothing), then the report.
   const bool json_to_stdout = args.json_out == "-";
   std::unique_ptr<io::AtomicFile> csv_file, json_file;
@@ -300,8 +339,18 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
     json_file->stream() << json;
     json_file->close();
   }
+  std::vector<std::unique_ptr<io::AtomicFile>> export_files;
+  for (const auto& e : exports) {
+    export_files.emplace_back(new io::AtomicFile(e.first));
+    export_files.back()->stream() << e.second.text;
+    export_files.back()->close();
+  }
   if (csv_file) csv_file->commit();
   if (json_file) json_file->commit();
+  for (auto& f : export_files) f->commit();
+  for (const auto& e : exports) {
+    if (!e.second.notice.empty()) err << kOfflineFitProgram << ": note: " << e.second.notice << std::endl;
+  }
 
   io::write_text_report(json_to_stdout ? err : out, report, input.context);
   if (json_to_stdout) out << json << std::flush;

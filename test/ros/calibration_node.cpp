@@ -6,6 +6,7 @@
 #include <sensor_msgs/Imu.h>
 #include <std_srvs/Trigger.h>
 #include <sys/wait.h>
+#include <yaml-cpp/yaml.h>
 
 #include <cmath>
 #include <cstdio>
@@ -249,6 +250,17 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
   EXPECT_EQ(row, expected.size());
   std::ifstream yaml(output_dir_ + "/intrinsics.yaml");
   EXPECT_TRUE(yaml.good());
+  // The exports of the `exports` parameter: imu_calib's SM is P = S^-1 of the result.
+  const YAML::Node calib = YAML::LoadFile(output_dir_ + "/imu_calib.yaml");
+  ASSERT_EQ(calib["SM"].size(), 9u);
+  for (int i = 0; i < 9; ++i) {
+    EXPECT_NEAR(calib["SM"][i].as<double>(), r.cross_sensitivity[i], 1e-12) << i;
+  }
+  std::ifstream px4(output_dir_ + "/px4.params");
+  std::stringstream px4_text;
+  px4_text << px4.rdbuf();
+  EXPECT_NE(px4_text.str().find("CAL_ACC0_XSCALE"), std::string::npos);
+  EXPECT_NE(px4_text.str().find("largest error left over all orientations"), std::string::npos);
 
   // Counters on calibration/status (latched, republished with the result).
   const ros::WallTime status_deadline = ros::WallTime::now() + ros::WallDuration(10.0);
@@ -282,6 +294,7 @@ TEST(NodeParams, RefuseToStartNamingTheParameter) {
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"calibration __name:=bad_calibration _local_gravity:=3.0", "/bad_calibration/local_gravity"},
       {"calibration __name:=bad_model _model:=quadratic", "/bad_model/model"},
+      {"calibration __name:=bad_exports _output_dir:=/tmp _exports:=[matlab]", "/bad_exports/exports"},
       {"gimbal_controller __name:=bad_gimbal _steps:=2", "/bad_gimbal/steps"},
       {"gimbal_controller __name:=bad_dwell _dwell_s:=-1.0", "/bad_dwell/dwell_s"},
       {"accelerometer __name:=bad_rate _rate_hz:=-5.0", "/bad_rate/rate_hz"},

@@ -9,6 +9,7 @@
 
 #include "accel_intrinsics/core/discrepancy.h"
 #include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/noise.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/protocol.h"
 #include "accel_intrinsics/core/quality.h"
@@ -48,6 +49,8 @@ struct CalibrationReport {
   std::optional<TimingLagEstimate> timing_lag;
   Quality quality;  // of the certificate (DESIGN.md section 5)
   std::string output_unit = "m/s^2";
+  // White noise from the dwells (noise.h), when they hold samples and durations.
+  std::optional<DwellNoise> noise;
 };
 
 // Fit -> analysis -> timing lag -> quality gate. Throws FitError when the fit fails (the message says what is

@@ -26,6 +26,8 @@ class CheckpointFiles {
   std::string state_path() const { return path("calibration_state.yaml"); }
   std::string result_path() const { return path("intrinsics.yaml"); }
   std::string analysis_path() const { return path("analysis.json"); }
+  // Any other file of the run in output_dir, e.g. an export (io::export_file_name).
+  std::string file_path(const char* name) const { return path(name); }
 
   // Appends one row and flushes it. The first row after construction or clear() starts a new
   // file with the header; after load() rows are appended to the restored table. Throws IoError.

@@ -10,6 +10,8 @@
 //     "joint+quadratic_nonlinearity[u]"), vectors_std, offset_std, offset_per_phase_std,
 //     cross_sensitivity_std, chi2, dof, fitted_effects [{name, target, value, std}] (the terms
 //     fitted in the certificate model)
+//   from the dwells (core/noise.h), when they tell: noise_density {u,v,w} ((m/s^2)/sqrt(Hz), the
+//     continuous-time density sample_std / sqrt(rate)), noise_density_std, sample_rate_hz
 //   always: certificate_model (model_label of the certificate), certificate_policy (base|refit)
 //   with an analysis: effects [{name, target, value, std, p_value, ...}] (the effects the analysis
 //     named, timing_lag appended when detected), ambiguous, gap {before, after}, screening, ...
@@ -98,6 +100,9 @@ struct StoredResult {
   Eigen::Matrix3d cross_sensitivity = Eigen::Matrix3d::Identity();  // P = S^-1
   double local_gravity = 0.0;
   std::vector<StoredEffect> fitted_effects;
+  // noise_density and sample_rate_hz when the file has them, else NaN.
+  Eigen::Vector3d noise_density = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  double sample_rate_hz = std::numeric_limits<double>::quiet_NaN();
 };
 
 // Reads a result written by write_result_json/yaml, by offline_fit before them, or an old node

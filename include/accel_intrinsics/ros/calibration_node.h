@@ -31,6 +31,7 @@
 #include "accel_intrinsics/core/calibrate.h"
 #include "accel_intrinsics/core/calibration_run.h"
 #include "accel_intrinsics/io/checkpoint.h"
+#include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/ros/immediate_callback_queue.h"
 
 namespace accel_intrinsics {
@@ -46,6 +47,7 @@ struct CalibrationOptions {
   double status_period_s = 1.0;   // calibration/status rate, s
   std::string output_dir;         // checkpoint, result YAML, analysis JSON; empty = no files
   std::string file_prefix;        // prefix of the file names in output_dir
+  std::vector<io::ExportFormat> exports;  // written into output_dir with each result
   std::string frame_id = "dut";   // frame of the result header
   bool immediate_imu = true;      // handle IMU messages in the network thread
   double imu_coalesce_s = 0.001;  // nap of the network thread woken from idle, s
@@ -96,6 +98,8 @@ class CalibrationNode {
   // `counters`: the run's sample counters when it was handed to the fit.
   void publish_certificate(const core::CalibrationReport& report,
                            const core::AssemblerCounters& counters, const ros::Time& stamp);
+  // The files of options_.exports in output_dir; a failure is logged, never fatal.
+  void write_exports(const core::CalibrationReport& report);
   // Returns the one-line summary (logged, and the analyze service's answer).
   std::string publish_analysis(const core::CalibrationReport& report, const ros::Time& stamp);
   void publish_status(const ros::Time& now);

@@ -29,6 +29,9 @@ constexpr char kAnalyzeService[] = "calibration/analyze";
 // accel_intrinsics/ResumeAt: continue the protocol at (phase, step, approach), or after it.
 constexpr char kResumeService[] = "gimbal_controller/resume";
 
+// sensor_msgs/Imu: the apply node's output, linear_acceleration = P (R - O) (DESIGN.md section 7).
+constexpr char kCalibratedImuTopic[] = "imu/data_calibrated";
+
 constexpr char kWorldFrame[] = "world";
 constexpr char kGimbalFrame[] = "gimbal";
 constexpr char kDutFrame[] = "dut";

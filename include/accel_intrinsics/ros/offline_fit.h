@@ -5,7 +5,7 @@
 //   offline_fit (--bag FILE|DIR [--bag ...] | --csv FILE) [--imu-topic T] [--command-topic T]
 //               [--gravity G] [--model joint|eq4] [--analyze] [--json OUT] [--csv-out FILE]
 //               [--settle-discard SECONDS] [--imu-time-offset SECONDS] [--skip-clock-check]
-//               [--output-unit UNIT]
+//               [--output-unit UNIT] [--export NAME=FILE]...
 //
 // The joint model takes any set of known orientations (position table rows with f_x,f_y,f_z)
 // that determines S and O, and a gimbal run missing a phase when the others determine S: the
@@ -27,6 +27,11 @@
 // --settle-discard (default 0) drops the samples of the first SECONDS of each dwell (after
 // SETTLED), as the calibration node's settle_discard_s does: for a gimbal that still rings when
 // it reports settled. Bags only.
+//
+// --export NAME=FILE (repeatable) writes the certificate for another tool (io/exporters.h:
+// imu_calib, imucal, kalibr, imu_tk, px4, ardupilot), with the result files, all or nothing;
+// what a format leaves out (px4/ardupilot: the largest error over all orientations) goes to
+// stderr as "offline_fit: note: ...".
 #pragma once
 
 #include <iosfwd>
@@ -63,6 +68,7 @@ struct OfflineFitArguments {
   double imu_time_offset_s = 0.0;  // added to every IMU stamp
   std::string output_unit = "m/s^2";  // unit of the raw outputs (counts, V, ...)
   bool skip_clock_check = false;
+  std::vector<std::string> exports;  // "NAME=FILE", each parsed by io::parse_export_spec
   // Given explicitly (they apply to --bag only, and are refused with --csv).
   bool imu_topic_given = false;
   bool command_topic_given = false;

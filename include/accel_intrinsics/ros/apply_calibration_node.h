@@ -1,0 +1,65 @@
+// apply_calibration: corrects a live IMU stream with a fitted calibration (DESIGN.md section 7).
+// Subscribes imu/data_raw, publishes imu/data_calibrated with linear_acceleration = P (R - O);
+// every other field is passed through. linear_acceleration_covariance: P diag(sigma^2) P^T when
+// the calibration file states the noise (a result with noise_density and sample_rate_hz), else
+// the input's covariance carried through P (P C P^T) when the input states one, else the input's
+// field as it is (unknown: -1 or zeros).
+//
+// Parameters (private): calibration_file (required: a result JSON/YAML or an imu_calib YAML),
+// queue_size (default 1000, both ways), immediate (default true: the message is corrected and published in
+// roscpp's network thread, no hand-off to a spinner thread), coalesce_s (default 0.001: after an
+// idle spell the network thread naps this long so that the next messages are read in one go; 0
+// off; see immediate_callback_queue.h). A file that cannot be read refuses the start, naming it.
+#pragma once
+
+#include <ros/ros.h>
+#include <sensor_msgs/Imu.h>
+
+#include <Eigen/Core>
+#include <string>
+
+#include "accel_intrinsics/io/apply_calibration_file.h"
+#include "accel_intrinsics/ros/immediate_callback_queue.h"
+
+namespace accel_intrinsics {
+
+// The per-message work, without ROS communication (tests and the benchmark call it).
+class CalibrationApplier {
+ public:
+  explicit CalibrationApplier(const io::ApplyCalibration& calibration);
+  // `out` = `in` with the corrected acceleration and its covariance.
+  void apply(const sensor_msgs::Imu& in, sensor_msgs::Imu* out) const;
+  const io::ApplyCalibration& calibration() const { return calibration_; }
+  bool noise_known() const { return noise_known_; }
+
+ private:
+  io::ApplyCalibration calibration_;
+  bool noise_known_ = false;
+  Eigen::Matrix3d covariance_ = Eigen::Matrix3d::Zero();  // P diag(sigma^2) P^T when known
+};
+
+struct ApplyCalibrationOptions {
+  std::string calibration_file;
+  int queue_size = 1000;
+  bool immediate = true;
+  double coalesce_s = 0.001;
+  // Reads the private parameters and the file; throws ParamError naming the parameter (and the
+  // file with what is wrong with it).
+  static ApplyCalibrationOptions load(const ros::NodeHandle& pnh, io::ApplyCalibration* calibration);
+};
+
+class ApplyCalibrationNode {
+ public:
+  ApplyCalibrationNode(ros::NodeHandle nh, const ApplyCalibrationOptions& options,
+                       const io::ApplyCalibration& calibration);
+
+ private:
+  void on_imu(const sensor_msgs::Imu::ConstPtr& msg);
+
+  CalibrationApplier applier_;
+  ImmediateCallbackQueue immediate_queue_;
+  ros::Subscriber sub_;
+  ros::Publisher pub_;
+};
+
+}  // namespace accel_intrinsics

@@ -1,0 +1,36 @@
+// apply_calibration as a nodelet (accel_intrinsics/ApplyCalibrationNodelet): the same node class,
+// in a nodelet manager beside the IMU driver and the orientation filter, where messages pass by
+// pointer (no serialization, no sockets). Parameters as the node's (apply_calibration_node.h).
+#include <nodelet/nodelet.h>
+#include <pluginlib/class_list_macros.hpp>
+
+#include <memory>
+
+#include "accel_intrinsics/ros/apply_calibration_node.h"
+#include "accel_intrinsics/ros/params.h"
+
+namespace accel_intrinsics {
+
+class ApplyCalibrationNodelet : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    try {
+      io::ApplyCalibration calibration;
+      ApplyCalibrationOptions options = ApplyCalibrationOptions::load(getPrivateNodeHandle(), &calibration);
+      // In a manager the publisher's thread may be a driver's: keep the manager's queue unless
+      // asked otherwise, and never nap in someone else's thread.
+      if (!getPrivateNodeHandle().hasParam("immediate")) options.immediate = false;
+      options.coalesce_s = options.immediate ? options.coalesce_s : 0.0;
+      node_.reset(new ApplyCalibrationNode(getNodeHandle(), options, calibration));
+    } catch (const ParamError& e) {
+      NODELET_FATAL("apply_calibration: refusing to start: %s", e.what());
+      throw;
+    }
+  }
+
+  std::unique_ptr<ApplyCalibrationNode> node_;
+};
+
+}  // namespace accel_intrinsics
+
+PLUGINLIB_EXPORT_CLASS(accel_intrinsics::ApplyCalibrationNodelet, nodelet::Nodelet)

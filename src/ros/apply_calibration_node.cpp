@@ -1,0 +1,88 @@
+#include "accel_intrinsics/ros/apply_calibration_node.h"
+
+#include <cmath>
+
+#include "accel_intrinsics/io/atomic_file.h"
+#include "accel_intrinsics/ros/names.h"
+#include "accel_intrinsics/ros/params.h"
+
+namespace accel_intrinsics {
+
+CalibrationApplier::CalibrationApplier(const io::ApplyCalibration& calibration)
+    : calibration_(calibration) {
+  noise_known_ = calibration.sample_std.allFinite();
+  if (noise_known_) {
+    covariance_ = calibration.P * calibration.sample_std.cwiseAbs2().asDiagonal() *
+                  calibration.P.transpose();
+  }
+}
+
+void CalibrationApplier::apply(const sensor_msgs::Imu& in, sensor_msgs::Imu* out) const {
+  *out = in;
+  const Eigen::Vector3d raw(in.linear_acceleration.x, in.linear_acceleration.y,
+                            in.linear_acceleration.z);
+  const Eigen::Vector3d a = calibration_.P * (raw - calibration_.O);
+  out->linear_acceleration.x = a(0);
+  out->linear_acceleration.y = a(1);
+  out->linear_acceleration.z = a(2);
+  if (noise_known_) {
+    for (int i = 0; i < 9; ++i) out->linear_acceleration_covariance[i] = covariance_(i / 3, i % 3);
+    return;
+  }
+  // REP 145: -1 in the first element means unknown, all zeros too; anything else is a
+  // covariance of the raw outputs, carried through P.
+  const auto& c = in.linear_acceleration_covariance;
+  bool all_zero = true;
+  for (double v : c) all_zero = all_zero && v == 0.0;
+  if (c[0] == -1.0 || all_zero) return;
+  Eigen::Matrix3d C;
+  for (int i = 0; i < 9; ++i) C(i / 3, i % 3) = c[i];
+  const Eigen::Matrix3d out_c = calibration_.P * C * calibration_.P.transpose();
+  for (int i = 0; i < 9; ++i) out->linear_acceleration_covariance[i] = out_c(i / 3, i % 3);
+}
+
+ApplyCalibrationOptions ApplyCalibrationOptions::load(const ros::NodeHandle& pnh,
+                                                      io::ApplyCalibration* calibration) {
+  ApplyCalibrationOptions o;
+  read_param(pnh, "calibration_file", &o.calibration_file);
+  require(!o.calibration_file.empty(), pnh, "calibration_file",
+          "is required: a result (offline_fit JSON, the calibration node's intrinsics.yaml) or "
+          "an imu_calib YAML");
+  read_param(pnh, "queue_size", &o.queue_size);
+  require(o.queue_size >= 1, pnh, "queue_size", "must be >= 1");
+  read_param(pnh, "immediate", &o.immediate);
+  read_param(pnh, "coalesce_s", &o.coalesce_s);
+  require(std::isfinite(o.coalesce_s) && o.coalesce_s >= 0.0 && o.coalesce_s <= 0.05, pnh,
+          "coalesce_s", "must be in [0, 0.05] s");
+  try {
+    *calibration = io::read_apply_calibration(o.calibration_file);
+  } catch (const io::IoError& e) {
+    throw ParamError("parameter " + param_name(pnh, "calibration_file") + ": " + e.what());
+  }
+  return o;
+}
+
+ApplyCalibrationNode::ApplyCalibrationNode(ros::NodeHandle nh, const ApplyCalibrationOptions& options,
+                                           const io::ApplyCalibration& calibration)
+    : applier_(calibration) {
+  pub_ = nh.advertise<sensor_msgs::Imu>(names::kCalibratedImuTopic, options.queue_size);
+  ros::SubscribeOptions sub_options = ros::SubscribeOptions::create<sensor_msgs::Imu>(
+      names::kImuTopic, options.queue_size,
+      boost::bind(&ApplyCalibrationNode::on_imu, this, boost::placeholders::_1), ros::VoidConstPtr(),
+      options.immediate ? &immediate_queue_ : nullptr);
+  sub_options.transport_hints = ros::TransportHints().tcpNoDelay();
+  immediate_queue_.set_coalesce_period(options.coalesce_s);
+  sub_ = nh.subscribe(sub_options);
+  ROS_INFO("apply_calibration: %s from %s (%s), %s -> %s", calibration.kind.c_str(),
+           options.calibration_file.c_str(),
+           applier_.noise_known() ? "with its noise: covariance filled" : "no noise figures",
+           sub_.getTopic().c_str(), pub_.getTopic().c_str());
+}
+
+void ApplyCalibrationNode::on_imu(const sensor_msgs::Imu::ConstPtr& msg) {
+  sensor_msgs::ImuPtr out(new sensor_msgs::Imu);
+  applier_.apply(*msg, out.get());
+  pub_.publish(out);
+}
+
+}  // namespace accel_intrinsics
