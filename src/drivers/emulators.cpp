@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <stdexcept>
 
@@ -64,12 +65,20 @@ DeviceEmulator::DeviceEmulator(const EmulatorOptions& options) : options_(option
   fcntl(master_, F_SETFL, fcntl(master_, F_GETFL) | O_NONBLOCK);
   fcntl(master_, F_SETFD, FD_CLOEXEC);
   fcntl(slave_, F_SETFD, FD_CLOEXEC);
+  for (const std::string& path : {options_.link_path, options_.log_path}) {
+    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+    std::error_code ignored;
+    if (!path.empty() && !parent.empty()) std::filesystem::create_directories(parent, ignored);
+  }
   if (!options_.link_path.empty()) {
     ::unlink(options_.link_path.c_str());
     if (::symlink(slave_path_.c_str(), options_.link_path.c_str()) != 0) {
       throw std::runtime_error("cannot link " + options_.link_path + " to " + slave_path_ + ": " +
                                std::strerror(errno));
     }
+  }
+  if (!options_.log_path.empty()) {
+    std::ofstream truncate(options_.log_path, std::ios::trunc);  // a fresh log per emulator
   }
   start_ = Clock::now();
 }

@@ -28,6 +28,8 @@ constexpr char kAnalysisTopic[] = "calibration/analysis";
 constexpr char kAnalyzeService[] = "calibration/analyze";
 // accel_intrinsics/ResumeAt: continue the protocol at (phase, step, approach), or after it.
 constexpr char kResumeService[] = "gimbal_controller/resume";
+// std_srvs/Trigger: the operator has remounted the DUT by hand; continue (DESIGN.md section 10).
+constexpr char kContinueService[] = "gimbal_controller/continue";
 
 constexpr char kWorldFrame[] = "world";
 constexpr char kGimbalFrame[] = "gimbal";
