@@ -160,12 +160,16 @@ void GrblDriver::reset_and_wait_banner() {
 
 DeviceStatus GrblDriver::query(GrblStatus* raw) {
   write("?");
+  std::string report;
   const Clock::time_point start = Clock::now();
   for (;;) {
     const double left =
         options_.reply_timeout_s - std::chrono::duration<double>(Clock::now() - start).count();
     const std::string line = expect_line("the status query '?'", left > 0.0 ? left : 0.0);
-    if (parse_grbl_status(line, raw)) break;
+    if (parse_grbl_status(line, raw)) {
+      report = line;
+      break;
+    }
     if (line == "ok") continue;  // a late acknowledgement
     if (starts_with(line, "error:")) {
       throw GimbalFault("grbl: " + with_text(line, grbl_error_text(code_after_colon(line))) +
@@ -183,7 +187,7 @@ DeviceStatus GrblDriver::query(GrblStatus* raw) {
   }
   DeviceStatus out;
   out.at_rest = raw->state == "Idle";
-  out.text = "";
+  out.text = printable(report);  // the report as GRBL sent it
   const std::vector<std::string> names = axis_names();
   for (std::size_t i = 0; i < work.size() && i < names.size(); ++i) out.position[names[i]] = work[i];
   return out;
@@ -192,14 +196,8 @@ DeviceStatus GrblDriver::query(GrblStatus* raw) {
 DeviceStatus GrblDriver::poll_status() {
   GrblStatus raw;
   DeviceStatus status = query(&raw);
-  // The report itself, for messages.
-  std::ostringstream text;
-  text << "<" << raw.state;
-  for (const auto& p : status.position) text << " " << p.first << "=" << p.second;
-  text << ">";
-  status.text = text.str();
   if (raw.state == "Alarm") {
-    throw GimbalFault("grbl: the controller is in alarm " + status.text +
+    throw GimbalFault("grbl: the controller is in alarm '" + status.text + "'" +
                       ": reset it, home it ($H) or unlock it ($X)");
   }
   if (raw.state == "Check" || raw.state == "Sleep") {
