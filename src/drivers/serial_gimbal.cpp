@@ -198,6 +198,16 @@ void SerialGimbalDriver::update(double t_s) {
   }
 }
 
+void SerialGimbalDriver::recover(double t_s) {
+  port_.close();
+  moving_ = false;
+  at_rest_since_s_ = -1.0;
+  settled_s_ = t_s;
+  history_.clear();
+  polled_ = false;
+  start_device();  // reopen, reset, home or unlock as at start
+}
+
 bool SerialGimbalDriver::settled(double) const { return !moving_; }
 
 double SerialGimbalDriver::settled_at(double t_s) const {

@@ -280,6 +280,10 @@ bool GimbalControllerNode::start(const ros::Time& now, std::string* message) {
     *message = s.str();
     return false;
   }
+  if (!recover_driver(now)) {
+    *message = "start refused: " + last_error_;
+    return false;
+  }
   state_ = State::Starting;
   state_since_ = now;
   start_at_ = now + ros::Duration(options_.start_delay_s);
@@ -393,6 +397,10 @@ bool GimbalControllerNode::on_resume(ResumeAt::Request& req, ResumeAt::Response&
 bool GimbalControllerNode::resume(const ros::Time& now, std::size_t index,
                                   const std::string& reason, std::string* message) {
   ++resumes_;
+  if (!recover_driver(now)) {
+    *message = "resume refused: " + last_error_;
+    return false;
+  }
   std::ostringstream s;
   s.precision(17);
   if (index >= schedule_.size()) {
@@ -466,7 +474,23 @@ bool GimbalControllerNode::drive(const ros::Time& now) {
   return true;
 }
 
+bool GimbalControllerNode::recover_driver(const ros::Time& now) {
+  if (!faulted_) return true;
+  try {
+    driver_->recover(now.toSec());
+  } catch (const GimbalFault& e) {
+    last_error_ = std::string("could not recover the gimbal after its fault: ") + e.what();
+    ROS_ERROR("gimbal controller: %s", last_error_.c_str());
+    publish_progress(now, false);
+    return false;
+  }
+  faulted_ = false;
+  ROS_WARN("gimbal controller: the %s gimbal recovered from its fault", driver_->name().c_str());
+  return true;
+}
+
 void GimbalControllerNode::driver_fault(const ros::Time& now, const std::string& what) {
+  faulted_ = true;
   std::string message;
   if (!abort(now, std::string("gimbal fault: ") + what, &message)) {
     last_error_ = std::string("gimbal fault: ") + what;

@@ -82,6 +82,9 @@ class GimbalDriver {
   // True when the DUT is remounted by hand before `phase` (a one-axis stage): the controller
   // pauses at the phase change until gimbal_controller/continue.
   virtual bool manual_remount(core::Phase /*phase*/) const { return false; }
+  // After a GimbalFault: brings the device back (reconnect, reset, homing as configured) so that
+  // the protocol can continue; throws GimbalFault with the device's words when it cannot.
+  virtual void recover(double /*t_s*/) {}
   // The device's latest status in its own words ("" when it has none), for messages.
   virtual std::string status_text() const { return ""; }
 };

@@ -86,6 +86,7 @@ class SerialGimbalDriver : public GimbalDriver {
   void stop(double t_s) override;
   GimbalTransforms orientation(double t_s) const override;
   void update(double t_s) override;
+  void recover(double t_s) override;
   bool manual_remount(core::Phase phase) const override;
   std::string status_text() const override { return last_status_.text; }
 

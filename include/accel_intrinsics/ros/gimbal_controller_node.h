@@ -134,6 +134,9 @@ class GimbalControllerNode {
   bool autostart_pending_ = false;
   std::size_t start_index_ = 0;  // where the next start begins (resume_* parameters)
   std::uint64_t resumes_ = 0;
+  bool faulted_ = false;  // the driver raised a GimbalFault: recover() before moving again
+  // Recovers a faulted driver; false with the reason in last_error_.
+  bool recover_driver(const ros::Time& now);
 };
 
 }  // namespace accel_intrinsics
