@@ -32,7 +32,7 @@ int emulator_main(const char* kind, int argc, char** argv) {
   CLI::App app(smc ? "Newport SMC100 controllers on a pseudo-terminal"
                    : "A GRBL 1.1 controller on a pseudo-terminal");
   app.add_option("--link", o.link_path, "symlink to the pseudo-terminal (the port to configure)");
-  app.add_option("--log", o.log_path, "append every command received to this file");
+  app.add_option("--log", o.log_path, "write every command received to this file, one per line");
   app.add_option("--rate-deg-s", o.rate_deg_s, "speed of every axis, deg/s")->capture_default_str();
   app.add_option("--home-s", o.home_s, "duration of homing, s")->capture_default_str();
   app.add_flag("--needs-homing", o.needs_homing,
