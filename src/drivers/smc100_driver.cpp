@@ -150,6 +150,26 @@ void Smc100Driver::initialize() {
     int errors = 0;
     std::string reply;
     int state = state_of(a, &errors, &reply);
+    const bool disabled = state == 0x14 || (state >= 0x3C && state <= 0x3E);
+    if ((disabled || errors != 0) && options_.home_at_start) {
+      // After a fault (a following error disables the motor): reset the controller (RS), which
+      // reboots it NOT REFERENCED, then home it below. It may not answer while it reboots.
+      write(a + "RS\r\n");
+      const Clock::time_point start = Clock::now();
+      for (;;) {
+        std::this_thread::sleep_for(std::chrono::duration<double>(options_.poll_interval_s));
+        try {
+          state = state_of(a, &errors, &reply);
+          if (smc100_not_referenced(state)) break;
+        } catch (const GimbalFault&) {
+          // still rebooting
+        }
+        if (std::chrono::duration<double>(Clock::now() - start).count() > options_.home_timeout_s) {
+          throw GimbalFault("smc100: address " + a + " did not come back NOT REFERENCED after "
+                            "the reset (RS) within home_timeout_s ('" + reply + "')");
+        }
+      }
+    }
     if (smc100_not_referenced(state)) {
       if (!options_.home_at_start) {
         throw GimbalFault("smc100: address " + a + " is " + smc100_state_text(state) + " ('" +

@@ -504,9 +504,10 @@ void GimbalControllerNode::tick(const ros::Time& now) {
     std::string message;
     start(now, &message);
   }
-  // The hardware first: status polls, which may find a fault.
+  // The hardware first: status polls, which may find a fault. A faulted device is left alone
+  // until a start or resume recovers it (a silent one would block every tick).
   try {
-    driver_->update(now.toSec());
+    if (!faulted_) driver_->update(now.toSec());
   } catch (const GimbalFault& e) {
     if (state_ == State::Starting || running()) {
       driver_fault(now, e.what());

@@ -347,3 +347,106 @@ TEST(SerialPort, MissingPortSaysSo) {
     EXPECT_NE(std::string(f.what()).find("No such file"), std::string::npos) << f.what();
   }
 }
+
+TEST(Recover, GrblAlarmIsHomedAwayAndTheStageMovesAgain) {
+  ai::EmulatorOptions e = fast();
+  e.needs_homing = true;
+  e.fault = "alarm";
+  e.fault_after = 0;
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  ai::SerialGimbalOptions o = two_axis(emu->port(), "X", "Y");
+  o.home_at_start = true;
+  ai::GrblDriver driver(o);
+  EXPECT_NE(fault_of_move(driver, target(Phase::X, 120.0)).find("ALARM:1"), std::string::npos);
+  driver.recover(wall_s());
+  const auto commands = emu->commands();
+  EXPECT_EQ(std::count(commands.begin(), commands.end(), "^X"), 2);
+  EXPECT_EQ(std::count(commands.begin(), commands.end(), "$H"), 2);
+  EXPECT_EQ(fault_of_move(driver, target(Phase::X, 120.0)), "");
+  EXPECT_NEAR(reported_alpha_deg(driver, Phase::X), 120.0, 0.01);
+}
+
+TEST(Recover, GrblAlarmIsUnlockedOnlyWhenConfigured) {
+  ai::EmulatorOptions e = fast();
+  e.needs_homing = true;
+  e.fault = "alarm";
+  e.fault_after = 0;
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  ai::SerialGimbalOptions o = two_axis(emu->port(), "X", "Y");
+  o.unlock_at_start = true;
+  ai::GrblDriver driver(o);
+  EXPECT_TRUE(contains(emu->commands(), "$X"));
+  EXPECT_NE(fault_of_move(driver, target(Phase::X, 120.0)).find("ALARM:1"), std::string::npos);
+  EXPECT_NO_THROW(driver.recover(wall_s()));  // unlock_at_start: $X again
+  const auto commands = emu->commands();
+  EXPECT_EQ(std::count(commands.begin(), commands.end(), "$X"), 2);
+  EXPECT_EQ(fault_of_move(driver, target(Phase::X, 60.0)), "");
+
+  // Neither homing nor unlocking allowed: the recovery fails and says what to do.
+  Served emu2(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  ai::SerialGimbalOptions o2 = two_axis(emu2->port(), "X", "Y");
+  o2.home_at_start = true;
+  ai::GrblDriver driver2(o2);
+  EXPECT_FALSE(fault_of_move(driver2, target(Phase::X, 120.0)).empty());
+  ai::SerialGimbalOptions o3 = o2;
+  o3.home_at_start = false;
+  ai::GrblDriver* bare = nullptr;
+  try {
+    bare = new ai::GrblDriver(o3);  // a fresh driver on the alarmed controller
+    FAIL() << "started on a controller in alarm";
+  } catch (const ai::GimbalFault& f) {
+    EXPECT_NE(std::string(f.what()).find("home_at_start"), std::string::npos) << f.what();
+    EXPECT_NE(std::string(f.what()).find("unlock_at_start"), std::string::npos) << f.what();
+  }
+  delete bare;
+}
+
+TEST(Recover, Smc100FollowingErrorIsResetAndHomed) {
+  ai::EmulatorOptions e = fast();
+  e.needs_homing = true;
+  e.fault = "alarm";
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::Smc100Emulator(e)));
+  ai::SerialGimbalOptions o;
+  o.port = emu->port();
+  o.baud = 57600;
+  o.reply_timeout_s = 0.5;
+  o.poll_interval_s = 0.01;
+  o.settle_s = 0.1;
+  o.home_at_start = true;
+  for (int p = 0; p < 3; ++p) {
+    o.axis_map.phases[p].axis = "1";
+    o.axis_map.phases[p].manual_remount = p > 0;
+  }
+  ai::Smc100Driver driver(o);
+  EXPECT_NE(fault_of_move(driver, target(Phase::X, 90.0)).find("following error"),
+            std::string::npos);
+  driver.recover(wall_s());
+  const auto commands = emu->commands();
+  EXPECT_TRUE(contains(commands, "1RS"));
+  EXPECT_EQ(std::count(commands.begin(), commands.end(), "1OR"), 2);
+  EXPECT_EQ(fault_of_move(driver, target(Phase::X, 90.0)), "");
+  EXPECT_NEAR(reported_alpha_deg(driver, Phase::X), 90.0, 0.01);
+}
+
+TEST(Recover, Smc100WithoutHomingSaysWhatToDo) {
+  ai::EmulatorOptions e = fast();
+  e.fault = "alarm";
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::Smc100Emulator(e)));
+  ai::SerialGimbalOptions o;
+  o.port = emu->port();
+  o.reply_timeout_s = 0.5;
+  o.poll_interval_s = 0.01;
+  o.settle_s = 0.1;
+  for (int p = 0; p < 3; ++p) {
+    o.axis_map.phases[p].axis = "1";
+    o.axis_map.phases[p].manual_remount = p > 0;
+  }
+  ai::Smc100Driver driver(o);
+  EXPECT_FALSE(fault_of_move(driver, target(Phase::X, 90.0)).empty());
+  try {
+    driver.recover(wall_s());
+    FAIL() << "recovered a DISABLEd controller without being allowed to reset it";
+  } catch (const ai::GimbalFault& f) {
+    EXPECT_NE(std::string(f.what()).find("DISABLE from MOVING"), std::string::npos) << f.what();
+  }
+}

@@ -27,8 +27,9 @@ bool smc100_not_referenced(int state);  // 0A..11
 
 class Smc100Driver : public SerialGimbalDriver {
  public:
-  // Opens the port and brings every controller to READY (homing with home_at_start); throws
-  // GimbalFault.
+  // Opens the port and brings every controller to READY: with home_at_start a NOT REFERENCED
+  // controller is homed (OR), and one that is DISABLEd or reports a positioner error (after a
+  // fault: recover()) is reset (RS) and homed. Throws GimbalFault.
   explicit Smc100Driver(const SerialGimbalOptions& options);
 
   std::string name() const override { return "smc100"; }
