@@ -228,8 +228,7 @@ RunActions CalibrationRun::on_controller_state(const std::string& state,
       controller_abort_ = reason;
       if (fault_.empty()) log(RunAction::Level::Error, "the gimbal controller aborted: " + reason);
     }
-  } else if (state == "STARTING" || state == "MOVING" || state == "SETTLED" ||
-             state == "REMOUNT") {
+  } else if (state == "STARTING" || state == "MOVING" || state == "SETTLED" || state == "REMOUNT") {
     controller_abort_.clear();
   }
   return take_actions();

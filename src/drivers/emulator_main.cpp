@@ -17,7 +17,9 @@ namespace {
 
 std::atomic<bool> g_stop{false};
 
-void on_signal(int) { g_stop = true; }
+void on_signal(int) {
+  g_stop = true;
+}
 
 }  // namespace
 
@@ -69,8 +71,9 @@ int emulator_main(const char* kind, int argc, char** argv) {
   std::signal(SIGTERM, on_signal);
   std::cout << name << ": serving on " << emulator->port()
             << (o.link_path.empty() ? "" : " (linked from " + o.link_path + ")")
-            << (o.fault == "none" ? "" : ", fault " + o.fault + " after " +
-                                             std::to_string(o.fault_after) + " moves")
+            << (o.fault == "none"
+                    ? ""
+                    : ", fault " + o.fault + " after " + std::to_string(o.fault_after) + " moves")
             << std::endl;
   emulator->run(g_stop);
   if (emulator->vanished() && !g_stop) {

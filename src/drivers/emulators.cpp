@@ -35,12 +35,13 @@ const char kGarbage[] = "\x07#~q\xfe\xff@!\r\n";
 void EmulatorOptions::validate() const {
   if (!(rate_deg_s > 0.0) || !std::isfinite(rate_deg_s))
     throw std::invalid_argument("rate_deg_s must be > 0");
-  if (!(home_s >= 0.0) || !std::isfinite(home_s)) throw std::invalid_argument("home_s must be >= 0");
+  if (!(home_s >= 0.0) || !std::isfinite(home_s))
+    throw std::invalid_argument("home_s must be >= 0");
   static const char* const kFaults[] = {"none", "no_reply", "garbage", "error", "alarm", "vanish"};
   if (std::find_if(std::begin(kFaults), std::end(kFaults),
                    [&](const char* f) { return fault == f; }) == std::end(kFaults)) {
-    throw std::invalid_argument("fault must be none, no_reply, garbage, error, alarm or vanish (got '" +
-                                fault + "')");
+    throw std::invalid_argument(
+        "fault must be none, no_reply, garbage, error, alarm or vanish (got '" + fault + "')");
   }
   if (fault_after < 0) throw std::invalid_argument("fault_after must be >= 0");
   if (addresses.empty()) throw std::invalid_argument("addresses must not be empty");
@@ -83,7 +84,9 @@ DeviceEmulator::DeviceEmulator(const EmulatorOptions& options) : options_(option
   start_ = Clock::now();
 }
 
-DeviceEmulator::~DeviceEmulator() { vanish(); }
+DeviceEmulator::~DeviceEmulator() {
+  vanish();
+}
 
 void DeviceEmulator::vanish() {
   if (master_ >= 0) ::close(master_);
@@ -279,7 +282,8 @@ void GrblEmulator::move(const std::string& line) {
     }
     i = static_cast<std::size_t>(end - line.c_str());
     if (letter == 'G') {
-      if (value == 0.0) g0 = true;
+      if (value == 0.0)
+        g0 = true;
       else if (value != 21.0 && value != 90.0) {
         reply("error:20\r\n");
         return;

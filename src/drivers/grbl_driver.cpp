@@ -91,8 +91,8 @@ bool parse_grbl_status(const std::string& line, GrblStatus* status) {
     if (starts_with(field, "WPos:") && !parse_numbers(field.substr(5), &out.wpos)) return false;
     if (starts_with(field, "WCO:") && !parse_numbers(field.substr(4), &out.wco)) return false;
   }
-  static const char* const kStates[] = {"Idle",  "Run",   "Hold", "Jog",  "Alarm",
-                                        "Door",  "Check", "Home", "Sleep"};
+  static const char* const kStates[] = {"Idle", "Run",   "Hold", "Jog",  "Alarm",
+                                        "Door", "Check", "Home", "Sleep"};
   bool known = false;
   for (const char* k : kStates) known = known || out.state == k;
   if (!known || (out.mpos.empty() && out.wpos.empty())) return false;
@@ -129,8 +129,7 @@ void GrblDriver::command(const std::string& line, double timeout_s) {
   const Clock::time_point start = Clock::now();
   if (timeout_s < 0.0) timeout_s = options_.reply_timeout_s;
   for (;;) {
-    const double left =
-        timeout_s - std::chrono::duration<double>(Clock::now() - start).count();
+    const double left = timeout_s - std::chrono::duration<double>(Clock::now() - start).count();
     const std::string reply = expect_line("'" + line + "'", left > 0.0 ? left : 0.0);
     if (reply == "ok") return;
     if (starts_with(reply, "error:")) {
@@ -189,7 +188,8 @@ DeviceStatus GrblDriver::query(GrblStatus* raw) {
   out.at_rest = raw->state == "Idle";
   out.text = printable(report);  // the report as GRBL sent it
   const std::vector<std::string> names = axis_names();
-  for (std::size_t i = 0; i < work.size() && i < names.size(); ++i) out.position[names[i]] = work[i];
+  for (std::size_t i = 0; i < work.size() && i < names.size(); ++i)
+    out.position[names[i]] = work[i];
   return out;
 }
 

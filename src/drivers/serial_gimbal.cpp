@@ -15,7 +15,9 @@ namespace {
 
 constexpr double kDeg = core::kPi / 180.0;
 
-std::string phase_key(int p) { return std::string("phases.") + "xyz"[p]; }
+std::string phase_key(int p) {
+  return std::string("phases.") + "xyz"[p];
+}
 
 }  // namespace
 
@@ -63,8 +65,8 @@ void AxisMap::validate(const std::vector<std::string>& known) const {
                                     ", the axis that turns in this phase");
       }
       if (!is_known(h.first)) {
-        throw std::invalid_argument(key + ".hold: '" + h.first + "' is not an axis of the device (" +
-                                    names + ")");
+        throw std::invalid_argument(key + ".hold: '" + h.first +
+                                    "' is not an axis of the device (" + names + ")");
       }
       if (!std::isfinite(h.second))
         throw std::invalid_argument(key + ".hold." + h.first + " must be finite");
@@ -208,7 +210,9 @@ void SerialGimbalDriver::recover(double t_s) {
   start_device();  // reopen, reset, home or unlock as at start
 }
 
-bool SerialGimbalDriver::settled(double) const { return !moving_; }
+bool SerialGimbalDriver::settled(double) const {
+  return !moving_;
+}
 
 double SerialGimbalDriver::settled_at(double t_s) const {
   return moving_ ? t_s : std::min(t_s, settled_s_);
@@ -236,9 +240,8 @@ GimbalTransforms SerialGimbalDriver::orientation(double t_s) const {
     } else if (t_s >= history_.back().t_s) {
       alpha = history_.back().alpha_rad;
     } else {
-      const auto after = std::lower_bound(
-          history_.begin(), history_.end(), t_s,
-          [](const Sample& s, double t) { return s.t_s < t; });
+      const auto after = std::lower_bound(history_.begin(), history_.end(), t_s,
+                                          [](const Sample& s, double t) { return s.t_s < t; });
       const auto before = after - 1;
       const double span = after->t_s - before->t_s;
       const double f = span > 0.0 ? (t_s - before->t_s) / span : 1.0;

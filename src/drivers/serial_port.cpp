@@ -29,7 +29,9 @@ speed_t baud_constant(int baud) {
   }
 }
 
-std::string system_error(int err) { return std::strerror(err); }
+std::string system_error(int err) {
+  return std::strerror(err);
+}
 
 int remaining_ms(Clock::time_point deadline) {
   const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
@@ -57,7 +59,9 @@ std::string printable(const std::string& bytes) {
   return out;
 }
 
-SerialPort::~SerialPort() { close(); }
+SerialPort::~SerialPort() {
+  close();
+}
 
 void SerialPort::open(const std::string& path, int baud) {
   close();
@@ -151,8 +155,8 @@ bool SerialPort::fill(double timeout_s) {
       }
       if (m == 0 || (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) {
         // Readable with nothing to read: end of file, the device is gone.
-        throw SerialError("serial port " + path_ + " lost: " +
-                          (m == 0 ? std::string("end of file") : system_error(errno)));
+        throw SerialError("serial port " + path_ +
+                          " lost: " + (m == 0 ? std::string("end of file") : system_error(errno)));
       }
     }
     if (wait == 0) return false;

@@ -89,11 +89,15 @@ std::string smc100_error_text(char code) {
   }
 }
 
-bool smc100_is_ready(int state) { return state >= 0x32 && state <= 0x35; }
+bool smc100_is_ready(int state) {
+  return state >= 0x32 && state <= 0x35;
+}
 bool smc100_is_moving(int state) {
   return state == 0x28 || state == 0x1E || state == 0x1F || state == 0x46 || state == 0x47;
 }
-bool smc100_not_referenced(int state) { return state >= 0x0A && state <= 0x11; }
+bool smc100_not_referenced(int state) {
+  return state >= 0x0A && state <= 0x11;
+}
 
 Smc100Driver::Smc100Driver(const SerialGimbalOptions& options) : SerialGimbalDriver(options) {
   std::vector<std::string> known;
@@ -127,8 +131,8 @@ void Smc100Driver::command(const std::string& address, const std::string& comman
   }
   if (error[0] != 'A') {
     const std::string text = smc100_error_text(error[0]);
-    throw GimbalFault("smc100: address " + address + " refused '" + address + command +
-                      "': '" + address + "TE" + error + "'" + (text.empty() ? "" : " (" + text + ")"));
+    throw GimbalFault("smc100: address " + address + " refused '" + address + command + "': '" +
+                      address + "TE" + error + "'" + (text.empty() ? "" : " (" + text + ")"));
   }
 }
 
@@ -165,8 +169,10 @@ void Smc100Driver::initialize() {
           // still rebooting
         }
         if (std::chrono::duration<double>(Clock::now() - start).count() > options_.home_timeout_s) {
-          throw GimbalFault("smc100: address " + a + " did not come back NOT REFERENCED after "
-                            "the reset (RS) within home_timeout_s ('" + reply + "')");
+          throw GimbalFault("smc100: address " + a +
+                            " did not come back NOT REFERENCED after "
+                            "the reset (RS) within home_timeout_s ('" +
+                            reply + "')");
         }
       }
     }
@@ -191,8 +197,8 @@ void Smc100Driver::initialize() {
         std::this_thread::sleep_for(std::chrono::duration<double>(options_.poll_interval_s));
       }
     } else if (!smc100_is_ready(state)) {
-      throw GimbalFault("smc100: address " + a + " is " + smc100_state_text(state) + " ('" +
-                        reply + "'), not READY: enable it or leave that state first");
+      throw GimbalFault("smc100: address " + a + " is " + smc100_state_text(state) + " ('" + reply +
+                        "'), not READY: enable it or leave that state first");
     }
   }
 }

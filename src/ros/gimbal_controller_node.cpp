@@ -70,9 +70,8 @@ void read_serial_options(const ros::NodeHandle& pnh, const std::string& driver,
   for (int p = 0; p < 3; ++p) {
     const std::string key = std::string("phases/") + "xyz"[p];
     if (!dn.hasParam(key)) {
-      throw ParamError("parameter " + param_name(dn, key) +
-                       " is missing: the axis map of phase " + "xyz"[p] +
-                       " (see config/" + driver + "_gimbal.yaml)");
+      throw ParamError("parameter " + param_name(dn, key) + " is missing: the axis map of phase " +
+                       "xyz"[p] + " (see config/" + driver + "_gimbal.yaml)");
     }
     const ros::NodeHandle ph(dn, key);
     PhaseAxes& axes = s.axis_map.phases[p];
@@ -557,10 +556,11 @@ void GimbalControllerNode::tick(const ros::Time& now) {
             // MOVING went out (the dwell is closed) and the stage turns to the phase's first
             // position; the operator remounts the DUT there and calls continue.
             state_ = State::Remount;
-            ROS_WARN("gimbal controller: remount the DUT for phase %s (it turns about its own %s "
-                     "axis), then call %s",
-                     core::phase_name(to), core::phase_name(to),
-                     nh_.resolveName(names::kContinueService).c_str());
+            ROS_WARN(
+                "gimbal controller: remount the DUT for phase %s (it turns about its own %s "
+                "axis), then call %s",
+                core::phase_name(to), core::phase_name(to),
+                nh_.resolveName(names::kContinueService).c_str());
           }
         } else {
           publish_command(now, GimbalCommand::DONE, schedule_[index_]);

@@ -504,7 +504,8 @@ TEST(CalibrationRun, ControllerFaultInAMoveIsRetriedAtItsPosition) {
   EXPECT_EQ(stand.resumes_[0].phase, Phase::X);
   EXPECT_EQ(stand.resumes_[0].step, 2u);
   EXPECT_FALSE(stand.resumes_[0].after);
-  EXPECT_NE(stand.resumes_[0].reason.find("ALARM:1"), std::string::npos) << stand.resumes_[0].reason;
+  EXPECT_NE(stand.resumes_[0].reason.find("ALARM:1"), std::string::npos)
+      << stand.resumes_[0].reason;
   EXPECT_NE(run.status(stand.now_s_).last_fault.find("Hard limit"), std::string::npos);
   EXPECT_EQ(run.status(stand.now_s_).retries, 1u);
   EXPECT_EQ(run.state(), RunState::Done);

@@ -142,7 +142,8 @@ TEST(AxisMap, OneAxisStageNeedsManualRemount) {
 
 TEST(Grbl, ParsesStatusReports) {
   ai::GrblStatus s;
-  ASSERT_TRUE(ai::parse_grbl_status("<Hold:0|MPos:1.000,-2.500,3.000|FS:0,0|WCO:0.000,1.000,0.000>", &s));
+  ASSERT_TRUE(
+      ai::parse_grbl_status("<Hold:0|MPos:1.000,-2.500,3.000|FS:0,0|WCO:0.000,1.000,0.000>", &s));
   EXPECT_EQ(s.state, "Hold");
   EXPECT_EQ(s.full_state, "Hold:0");
   ASSERT_EQ(s.mpos.size(), 3u);
@@ -332,8 +333,7 @@ INSTANTIATE_TEST_SUITE_P(
     testing::Values(FaultCase{"error", {"1TEG", "displacement out of limits", "1PA90.0000"}},
                     FaultCase{"alarm", {"1TS00203D", "following error", "DISABLE from MOVING"}},
                     FaultCase{"garbage", {"unexpected reply", "\\x07#~q"}},
-                    FaultCase{"no_reply", {"no reply", "1TE?"}},
-                    FaultCase{"vanish", {"lost"}}),
+                    FaultCase{"no_reply", {"no reply", "1TE?"}}, FaultCase{"vanish", {"lost"}}),
     [](const testing::TestParamInfo<FaultCase>& info) { return info.param.fault; });
 
 TEST(SerialPort, MissingPortSaysSo) {

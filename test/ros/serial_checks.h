@@ -27,6 +27,8 @@ inline std::string fixed4(double v) {
 }
 
 // Stage positions (deg) of the N positions of each phase: alpha_n = 360 n / N.
-inline double alpha_deg(int n, int steps) { return 360.0 * n / steps; }
+inline double alpha_deg(int n, int steps) {
+  return 360.0 * n / steps;
+}
 
 }  // namespace serial_checks

@@ -96,7 +96,8 @@ TEST(Smc100OneAxis, ManualRemountThroughContinue) {
     std::lock_guard<std::mutex> lock(mutex);
     int moving_y0 = 0;
     for (const auto& c : commands) {
-      moving_y0 += c.state == accel_intrinsics::GimbalCommand::MOVING && c.phase == 1 && c.step == 0;
+      moving_y0 +=
+          c.state == accel_intrinsics::GimbalCommand::MOVING && c.phase == 1 && c.step == 0;
     }
     EXPECT_EQ(moving_y0, 1) << "one MOVING for y/0, published before the remount";
   }

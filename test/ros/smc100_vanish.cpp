@@ -1,7 +1,9 @@
 // A serial port that vanishes mid-run: see test/ros/smc100_vanish.test and fault_checks.h.
 #include "fault_checks.h"
 
-TEST(SerialFault, smc100_vanish) { fault_checks::check_case(); }
+TEST(SerialFault, smc100_vanish) {
+  fault_checks::check_case();
+}
 
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);

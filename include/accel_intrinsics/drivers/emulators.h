@@ -22,17 +22,17 @@
 namespace accel_intrinsics {
 
 struct EmulatorOptions {
-  double rate_deg_s = 180.0;  // speed of every axis, deg/s (wall clock)
-  double home_s = 0.5;        // duration of a homing cycle, s
-  bool needs_homing = false;  // GRBL: homing enabled (Alarm after reset until $H or $X);
-                              // SMC100: NOT REFERENCED at power-up (until OR)
-  std::string fault = "none";  // none | no_reply | garbage | error | alarm | vanish
-  int fault_after = 0;         // moves answered normally before the fault
-  int error_code = 20;         // GRBL error:N for fault = error
-  int alarm_code = 1;          // GRBL ALARM:N for fault = alarm
+  double rate_deg_s = 180.0;      // speed of every axis, deg/s (wall clock)
+  double home_s = 0.5;            // duration of a homing cycle, s
+  bool needs_homing = false;      // GRBL: homing enabled (Alarm after reset until $H or $X);
+                                  // SMC100: NOT REFERENCED at power-up (until OR)
+  std::string fault = "none";     // none | no_reply | garbage | error | alarm | vanish
+  int fault_after = 0;            // moves answered normally before the fault
+  int error_code = 20;            // GRBL error:N for fault = error
+  int alarm_code = 1;             // GRBL ALARM:N for fault = alarm
   std::vector<int> addresses{1};  // SMC100 controller addresses on the port
-  std::string log_path;          // also append the command log to this file ("" = none)
-  std::string link_path;         // symlink to the pseudo-terminal ("" = none)
+  std::string log_path;           // also append the command log to this file ("" = none)
+  std::string link_path;          // symlink to the pseudo-terminal ("" = none)
 
   // Throws std::invalid_argument naming the field.
   void validate() const;

@@ -52,17 +52,17 @@ struct AxisMap {
 };
 
 struct SerialGimbalOptions {
-  std::string port;              // device path ("/dev/ttyUSB0", or the emulator's pty)
-  int baud = 115200;             // GRBL: 115200; SMC100: 57600
+  std::string port;                // device path ("/dev/ttyUSB0", or the emulator's pty)
+  int baud = 115200;               // GRBL: 115200; SMC100: 57600
   double connect_timeout_s = 5.0;  // keep trying to open the port this long (wall clock), s
-  double reply_timeout_s = 2.0;  // a command without its reply this long (wall clock): fault
-  double poll_interval_s = 0.05; // status polls at most this often (wall clock), s
-  double tolerance_deg = 0.01;   // at the target: every axis within this, deg
-  double settle_s = 0.5;         // at rest at the target this long before SETTLED (node clock), s
-  bool home_at_start = false;    // home the stage when the driver starts (GRBL $H, SMC100 OR)
-  double home_timeout_s = 120.0; // homing must finish within this (wall clock), s
-  bool unlock_at_start = false;  // GRBL: an alarm at start is unlocked with $X (no homing)
-  bool reset_at_start = true;    // GRBL: soft reset (0x18) at start; SMC100: nothing (RS re-homes)
+  double reply_timeout_s = 2.0;    // a command without its reply this long (wall clock): fault
+  double poll_interval_s = 0.05;   // status polls at most this often (wall clock), s
+  double tolerance_deg = 0.01;     // at the target: every axis within this, deg
+  double settle_s = 0.5;           // at rest at the target this long before SETTLED (node clock), s
+  bool home_at_start = false;      // home the stage when the driver starts (GRBL $H, SMC100 OR)
+  double home_timeout_s = 120.0;   // homing must finish within this (wall clock), s
+  bool unlock_at_start = false;    // GRBL: an alarm at start is unlocked with $X (no homing)
+  bool reset_at_start = true;  // GRBL: soft reset (0x18) at start; SMC100: nothing (RS re-homes)
   AxisMap axis_map;
 
   // Throws std::invalid_argument naming the field.

@@ -21,8 +21,8 @@ namespace accel_intrinsics {
 std::string smc100_state_text(int state);
 // The command error of a TE reply ('A' .. 'X'); "" if unknown.
 std::string smc100_error_text(char code);
-bool smc100_is_ready(int state);       // 32..35
-bool smc100_is_moving(int state);      // 28, HOMING 1E/1F, JOGGING 46/47
+bool smc100_is_ready(int state);        // 32..35
+bool smc100_is_moving(int state);       // 28, HOMING 1E/1F, JOGGING 46/47
 bool smc100_not_referenced(int state);  // 0A..11
 
 class Smc100Driver : public SerialGimbalDriver {
