@@ -3,7 +3,8 @@
 // smc100_emulator.cpp). ROS-free. They answer in the device's grammar (grbl_driver.h,
 // smc100_driver.h), move at a configured rate in wall-clock time, log every command received
 // (one per line; the real-time bytes of GRBL as "?", "!", "~", "^X"), and inject faults at the
-// (fault_after + 1)-th move command:
+// (fault_after + 1)-th move command (GRBL: a G0 line; SMC100: a PA of any address, so a two-axis
+// position counts twice):
 //   no_reply  never answer anything again
 //   garbage   answer that command (GRBL) or the next query (SMC100) with bytes outside the grammar
 //   error     refuse the move (GRBL "error:<error_code>", SMC100 TE "G" displacement out of limits)
