@@ -158,6 +158,10 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
     emit(RunAction::Kind::CheckpointState);
   }
   steps_seen_ = event.steps;
+  if (event.state != GimbalState::Done) {  // a DONE of an abort names the position it ended
+    have_last_event_ = true;
+    last_event_ = event;
+  }
   // Live view (arrival order) for the IMU watchdog, and the announced dwells (stamp order).
   live_in_dwell_ = event.state == GimbalState::Settled;
   if (live_in_dwell_) live_dwell_ = event;
@@ -211,7 +215,8 @@ RunActions CalibrationRun::on_controller_state(const std::string& state,
                                                const std::string& message) {
   // A running controller never goes back to IDLE by itself: a new process has taken its place
   // (respawned after a crash). The run it drove is still open here: continue it (at tick()).
-  const bool was_running = controller_state_ == "MOVING" || controller_state_ == "SETTLED";
+  const bool was_running = controller_state_ == "MOVING" || controller_state_ == "SETTLED" ||
+                           controller_state_ == "REMOUNT";
   if (state == "IDLE" && was_running && !done_pending_ && !assembler_.done() && !have_result_ &&
       fault_.empty() && controller_abort_.empty()) {
     controller_restarted_ = true;
@@ -222,11 +227,23 @@ RunActions CalibrationRun::on_controller_state(const std::string& state,
     // "ABORTED: <reason>"
     const std::size_t colon = message.find(": ");
     const std::string reason = colon == std::string::npos ? message : message.substr(colon + 2);
-    if (reason != controller_abort_) {
+    const bool ours = !fault_.empty() || pending_ == Pending::Abort;  // we asked for it
+    if (reason != controller_abort_ && !ours && options_.retry_on_fault && have_last_event_ &&
+        !controller_fault_pending_ && !have_result_ && !rewind_pending() && !fitting_) {
+      // A fault of the gimbal itself at the position of the latest command: measure it again
+      // (at tick(), after the reorder window, so that the dwells before it are complete).
+      controller_fault_pending_ = true;
+      controller_fault_.reason = "the gimbal controller aborted: " + reason;
+      controller_fault_.phase = last_event_.phase;
+      controller_fault_.step = last_event_.step;
+      controller_fault_.in_dwell = last_event_.state == GimbalState::Settled;
+      controller_fault_.stamp_s = last_event_.stamp_s;
+      log(RunAction::Level::Warn, controller_fault_.reason);
+    } else if (reason != controller_abort_ && !controller_fault_pending_) {
       controller_abort_ = reason;
       if (fault_.empty()) log(RunAction::Level::Error, "the gimbal controller aborted: " + reason);
     }
-  } else if (state == "STARTING" || state == "MOVING" || state == "SETTLED") {
+  } else if (state == "STARTING" || state == "MOVING" || state == "SETTLED" || state == "REMOUNT") {
     controller_abort_.clear();
   }
   return take_actions();
@@ -238,7 +255,30 @@ RunActions CalibrationRun::on_streams_idle() {
   return tick(done_stamp_s_ + options_.assembler.reorder_window_s);
 }
 
+void CalibrationRun::retry_controller_fault() {
+  controller_fault_pending_ = false;
+  const ControllerFault f = controller_fault_;
+  // Everything before the faulted position is complete: its rows go to the table before the
+  // assembler restarts. A dwell the fault cut short is measured again (blackout from its
+  // SETTLED); after a fault in a move, from the MOVING that ended the previous dwell.
+  if (f.in_dwell) {
+    assembler_.flush_until(f.stamp_s - 1e-9);
+  } else {
+    assembler_.flush_until(f.stamp_s);
+  }
+  process_completed_rows();
+  const int approach = approach_of_next_row(f.phase, f.step);
+  // Retried (rewind at the position) or, after max_retries, the run is aborted with the
+  // controller's words.
+  raise_fault(f.reason + " at " + position_label(f.phase, f.step, approach), f.phase, f.step,
+              approach, f.stamp_s);
+}
+
 RunActions CalibrationRun::tick(double now_s) {
+  if (controller_fault_pending_ &&
+      now_s >= controller_fault_.stamp_s + options_.assembler.reorder_window_s) {
+    retry_controller_fault();
+  }
   if (controller_restarted_ && !rewind_pending()) {
     controller_restarted_ = false;
     begin_resume("the gimbal controller restarted mid-run");
@@ -259,7 +299,7 @@ RunActions CalibrationRun::tick(double now_s) {
     emit_fit();
   }
   const double window = options_.assembler.reorder_window_s;
-  if (done_pending_ && now_s >= done_stamp_s_ + window) {
+  if (done_pending_ && now_s >= done_stamp_s_ + window && !controller_fault_pending_) {
     assembler_.flush();
     process_completed_rows();
     done_pending_ = false;
@@ -417,6 +457,8 @@ RunActions CalibrationRun::reset(const std::string& reason) {
   request_ = ControllerRequest();
   fault_.clear();
   controller_abort_.clear();
+  controller_fault_pending_ = false;
+  have_last_event_ = false;
   last_fault_.clear();
   retries_.clear();
   retries_total_ = 0;
@@ -652,7 +694,7 @@ void CalibrationRun::warn_on_new_drops() {
 RunState CalibrationRun::state() const {
   if (have_result_) return RunState::Done;
   if (aborted()) return RunState::Aborted;
-  if (rewind_pending()) return RunState::WaitingForResume;
+  if (rewind_pending() || controller_fault_pending_) return RunState::WaitingForResume;
   if (!fit_error_.empty()) return RunState::FitFailed;
   if (done_pending_ || fitting_) return RunState::Fitting;
   if (commands_in_run_ == 0) return RunState::Idle;

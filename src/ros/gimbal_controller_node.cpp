@@ -11,6 +11,8 @@
 #include <stdexcept>
 
 #include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/drivers/grbl_driver.h"
+#include "accel_intrinsics/drivers/smc100_driver.h"
 #include "accel_intrinsics/ros/names.h"
 #include "accel_intrinsics/ros/params.h"
 
@@ -45,6 +47,73 @@ std::string num(double v, int precision = 3) {
   s.precision(precision);
   s << v;
   return s.str();
+}
+
+// ~<driver>/...: the serial gimbal and its per-phase axis map.
+void read_serial_options(const ros::NodeHandle& pnh, const std::string& driver,
+                         GimbalControllerOptions* o) {
+  const ros::NodeHandle dn(pnh, driver);
+  SerialGimbalOptions& s = o->serial;
+  s.baud = driver == "smc100" ? 57600 : 115200;
+  s.settle_s = o->protocol.settle_s;
+  read_param(dn, "port", &s.port);
+  read_param(dn, "baud", &s.baud);
+  read_param(dn, "connect_timeout_s", &s.connect_timeout_s);
+  read_param(dn, "reply_timeout_s", &s.reply_timeout_s);
+  read_param(dn, "poll_interval_s", &s.poll_interval_s);
+  read_param(dn, "tolerance_deg", &s.tolerance_deg);
+  read_param(dn, "settle_s", &s.settle_s);
+  read_param(dn, "home_at_start", &s.home_at_start);
+  read_param(dn, "home_timeout_s", &s.home_timeout_s);
+  read_param(dn, "unlock_at_start", &s.unlock_at_start);
+  read_param(dn, "reset_at_start", &s.reset_at_start);
+  for (int p = 0; p < 3; ++p) {
+    const std::string key = std::string("phases/") + "xyz"[p];
+    if (!dn.hasParam(key)) {
+      throw ParamError("parameter " + param_name(dn, key) + " is missing: the axis map of phase " +
+                       "xyz"[p] + " (see config/" + driver + "_gimbal.yaml)");
+    }
+    const ros::NodeHandle ph(dn, key);
+    PhaseAxes& axes = s.axis_map.phases[p];
+    XmlRpc::XmlRpcValue axis;
+    if (ph.getParam("axis", axis)) {
+      if (axis.getType() == XmlRpc::XmlRpcValue::TypeString) {
+        axes.axis = static_cast<std::string>(axis);
+      } else if (axis.getType() == XmlRpc::XmlRpcValue::TypeInt) {
+        axes.axis = std::to_string(static_cast<int>(axis));
+      } else {
+        throw ParamError("parameter " + param_name(ph, "axis") +
+                         " must be an axis letter (grbl) or a controller address (smc100)");
+      }
+    }
+    read_param(ph, "sign", &axes.sign);
+    read_param(ph, "zero_deg", &axes.zero_deg);
+    read_param(ph, "manual_remount", &axes.manual_remount);
+    XmlRpc::XmlRpcValue hold;
+    if (ph.getParam("hold", hold)) {
+      if (hold.getType() != XmlRpc::XmlRpcValue::TypeStruct) {
+        throw ParamError("parameter " + param_name(ph, "hold") +
+                         " must be a map axis: position_deg ({Y: 90.0})");
+      }
+      for (auto it = hold.begin(); it != hold.end(); ++it) {
+        const XmlRpc::XmlRpcValue& v = it->second;
+        if (v.getType() == XmlRpc::XmlRpcValue::TypeDouble) {
+          axes.hold[it->first] = static_cast<double>(const_cast<XmlRpc::XmlRpcValue&>(v));
+        } else if (v.getType() == XmlRpc::XmlRpcValue::TypeInt) {
+          axes.hold[it->first] = static_cast<int>(const_cast<XmlRpc::XmlRpcValue&>(v));
+        } else {
+          throw ParamError("parameter " + param_name(ph, "hold/" + it->first) +
+                           " must be a number (deg)");
+        }
+      }
+    }
+  }
+  try {
+    s.validate();
+    s.axis_map.validate({});
+  } catch (const std::invalid_argument& e) {
+    throw ParamError("parameter " + dn.getNamespace() + "/" + e.what());
+  }
 }
 
 }  // namespace
@@ -94,8 +163,9 @@ GimbalControllerOptions GimbalControllerOptions::load(const ros::NodeHandle& pnh
   require(o.resume_approach == 1 || o.resume_step < o.protocol.steps_per_phase, pnh,
           "resume_approach", "the closing position is only approached from below (+1)");
   read_param(pnh, "driver", &o.driver);
-  require(o.driver == "simulated", pnh, "driver",
-          "unknown gimbal driver '" + o.driver + "' (known: simulated)");
+  require(o.driver == "simulated" || o.driver == "grbl" || o.driver == "smc100", pnh, "driver",
+          "unknown gimbal driver '" + o.driver + "' (known: simulated, grbl, smc100)");
+  if (o.driver != "simulated") read_serial_options(pnh, o.driver, &o);
   read_param(pnh, "world_frame", &o.world_frame);
   read_param(pnh, "gimbal_frame", &o.gimbal_frame);
   read_param(pnh, "dut_frame", &o.dut_frame);
@@ -128,6 +198,18 @@ std::unique_ptr<GimbalDriver> make_gimbal_driver(const GimbalControllerOptions& 
   if (options.driver == "simulated") {
     return std::unique_ptr<GimbalDriver>(new SimulatedGimbalDriver(options.simulated));
   }
+  // A serial gimbal that cannot be brought up (port missing, no reply, alarm at start) keeps the
+  // node from starting, with the device's words.
+  try {
+    if (options.driver == "grbl") {
+      return std::unique_ptr<GimbalDriver>(new GrblDriver(options.serial));
+    }
+    if (options.driver == "smc100") {
+      return std::unique_ptr<GimbalDriver>(new Smc100Driver(options.serial));
+    }
+  } catch (const GimbalFault& e) {
+    throw ParamError(std::string("the gimbal did not start: ") + e.what());
+  }
   throw ParamError("unknown gimbal driver '" + options.driver + "'");
 }
 
@@ -137,6 +219,7 @@ const char* GimbalControllerNode::state_name(State state) {
     case State::Starting: return "STARTING";
     case State::Moving: return "MOVING";
     case State::Dwelling: return "SETTLED";
+    case State::Remount: return "REMOUNT";
     case State::Done: return "DONE";
     case State::Aborted: return "ABORTED";
   }
@@ -156,6 +239,8 @@ GimbalControllerNode::GimbalControllerNode(ros::NodeHandle nh, ros::NodeHandle p
   abort_run_srv_ =
       nh_.advertiseService(names::kAbortRunService, &GimbalControllerNode::on_abort_run, this);
   resume_srv_ = nh_.advertiseService(names::kResumeService, &GimbalControllerNode::on_resume, this);
+  continue_srv_ =
+      nh_.advertiseService(names::kContinueService, &GimbalControllerNode::on_continue, this);
   updater_.reset(new diagnostic_updater::Updater(nh_, pnh_));
   updater_->setHardwareID(driver_->name() + " gimbal " + nh_.getNamespace());
   updater_->add("protocol", this, &GimbalControllerNode::diagnose);
@@ -187,11 +272,15 @@ void GimbalControllerNode::on_timer(const ros::TimerEvent&) {
 }
 
 bool GimbalControllerNode::start(const ros::Time& now, std::string* message) {
-  if (state_ == State::Starting || state_ == State::Moving || state_ == State::Dwelling) {
+  if (state_ == State::Starting || running()) {
     std::ostringstream s;
     s << "already running (" << state_name(state_) << " phase "
       << core::phase_name(schedule_[index_].phase) << " step " << schedule_[index_].step << ")";
     *message = s.str();
+    return false;
+  }
+  if (!recover_driver(now)) {
+    *message = "start refused: " + last_error_;
     return false;
   }
   state_ = State::Starting;
@@ -210,7 +299,7 @@ bool GimbalControllerNode::start(const ros::Time& now, std::string* message) {
 
 bool GimbalControllerNode::abort(const ros::Time& now, const std::string& reason,
                                  std::string* message) {
-  if (state_ != State::Starting && state_ != State::Moving && state_ != State::Dwelling) {
+  if (state_ != State::Starting && !running()) {
     *message = std::string("not running (") + state_name(state_) + ")";
     return false;
   }
@@ -227,6 +316,31 @@ bool GimbalControllerNode::abort(const ros::Time& now, const std::string& reason
   *message = "aborted: " + reason;
   ROS_WARN("gimbal controller: %s", message->c_str());
   publish_progress(now, false);
+  return true;
+}
+
+bool GimbalControllerNode::continue_after_remount(const ros::Time& now, std::string* message) {
+  if (state_ != State::Remount) {
+    *message = std::string("not waiting for a remount (") + state_name(state_) + ")";
+    return false;
+  }
+  const core::ScheduledPosition& p = schedule_[index_];
+  state_ = State::Moving;
+  state_since_ = now;
+  // The move again: the settling time starts now, after the operator's hands left the DUT.
+  if (!drive(now)) {
+    *message = "continue failed: " + last_error_;
+    return false;
+  }
+  *message = std::string("continuing with phase ") + core::phase_name(p.phase);
+  ROS_INFO("gimbal controller: remount done, %s", message->c_str());
+  publish_progress(now, false);
+  return true;
+}
+
+bool GimbalControllerNode::on_continue(std_srvs::Trigger::Request&,
+                                       std_srvs::Trigger::Response& res) {
+  res.success = continue_after_remount(ros::Time::now(), &res.message);
   return true;
 }
 
@@ -282,11 +396,15 @@ bool GimbalControllerNode::on_resume(ResumeAt::Request& req, ResumeAt::Response&
 bool GimbalControllerNode::resume(const ros::Time& now, std::size_t index,
                                   const std::string& reason, std::string* message) {
   ++resumes_;
+  if (!recover_driver(now)) {
+    *message = "resume refused: " + last_error_;
+    return false;
+  }
   std::ostringstream s;
   s.precision(17);
   if (index >= schedule_.size()) {
     // Nothing left after that position: the protocol is complete.
-    if (state_ == State::Moving || state_ == State::Dwelling) driver_->stop(now.toSec());
+    if (running()) driver_->stop(now.toSec());
     index_ = schedule_.size() - 1;
     publish_command(now, GimbalCommand::DONE, schedule_[index_]);
     state_ = State::Done;
@@ -309,9 +427,13 @@ bool GimbalControllerNode::resume(const ros::Time& now, std::size_t index,
 void GimbalControllerNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
   const ros::Time now = ros::Time::now();
   const core::ScheduledPosition& p = schedule_[std::min(index_, schedule_.size() - 1)];
-  const bool running = state_ == State::Moving || state_ == State::Dwelling;
+  const bool running = this->running();
   if (state_ == State::Aborted) {
     status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "aborted: " + last_error_);
+  } else if (state_ == State::Remount) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                   std::string("waiting for the operator to remount the DUT for phase ") +
+                       core::phase_name(p.phase));
   } else if (state_ == State::Moving &&
              (now - state_since_).toSec() > 0.5 * options_.settle_timeout_s) {
     status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "the gimbal is slow to settle");
@@ -336,9 +458,43 @@ void GimbalControllerNode::begin_move(std::size_t index, const ros::Time& now) {
   // The command goes out first with this stamp; the gimbal starts moving at the same instant,
   // so every sample stamped before it was taken at rest.
   publish_command(now, GimbalCommand::MOVING, p);
-  driver_->move_to(target_of(p), now.toSec());
   state_ = State::Moving;
   state_since_ = now;
+  drive(now);
+}
+
+bool GimbalControllerNode::drive(const ros::Time& now) {
+  try {
+    driver_->move_to(target_of(schedule_[index_]), now.toSec());
+  } catch (const GimbalFault& e) {
+    driver_fault(now, e.what());
+    return false;
+  }
+  return true;
+}
+
+bool GimbalControllerNode::recover_driver(const ros::Time& now) {
+  if (!faulted_) return true;
+  try {
+    driver_->recover(now.toSec());
+  } catch (const GimbalFault& e) {
+    last_error_ = std::string("could not recover the gimbal after its fault: ") + e.what();
+    ROS_ERROR("gimbal controller: %s", last_error_.c_str());
+    publish_progress(now, false);
+    return false;
+  }
+  faulted_ = false;
+  ROS_WARN("gimbal controller: the %s gimbal recovered from its fault", driver_->name().c_str());
+  return true;
+}
+
+void GimbalControllerNode::driver_fault(const ros::Time& now, const std::string& what) {
+  faulted_ = true;
+  std::string message;
+  if (!abort(now, std::string("gimbal fault: ") + what, &message)) {
+    last_error_ = std::string("gimbal fault: ") + what;
+  }
+  ROS_ERROR("gimbal controller: %s", last_error_.c_str());
 }
 
 void GimbalControllerNode::tick(const ros::Time& now) {
@@ -346,6 +502,17 @@ void GimbalControllerNode::tick(const ros::Time& now) {
     autostart_pending_ = false;
     std::string message;
     start(now, &message);
+  }
+  // The hardware first: status polls, which may find a fault. A faulted device is left alone
+  // until a start or resume recovers it (a silent one would block every tick).
+  try {
+    if (!faulted_) driver_->update(now.toSec());
+  } catch (const GimbalFault& e) {
+    if (state_ == State::Starting || running()) {
+      driver_fault(now, e.what());
+    } else {
+      ROS_WARN_THROTTLE(10.0, "gimbal controller: %s", e.what());
+    }
   }
   bool changed = false;
   switch (state_) {
@@ -373,6 +540,8 @@ void GimbalControllerNode::tick(const ros::Time& now) {
         reason << "the gimbal did not settle at phase " << core::phase_name(schedule_[index_].phase)
                << " step " << schedule_[index_].step
                << " within settle_timeout_s = " << options_.settle_timeout_s << " s";
+        const std::string device = driver_->status_text();
+        if (!device.empty()) reason << " (" << driver_->name() << " reports " << device << ")";
         abort(now, reason.str(), &message);
         ROS_ERROR("gimbal controller: %s", message.c_str());
       }
@@ -380,7 +549,19 @@ void GimbalControllerNode::tick(const ros::Time& now) {
     case State::Dwelling:
       if ((now - state_since_).toSec() >= options_.protocol.dwell_s) {
         if (index_ + 1 < schedule_.size()) {
+          const core::Phase from = schedule_[index_].phase;
           begin_move(index_ + 1, now);
+          const core::Phase to = schedule_[index_].phase;
+          if (state_ == State::Moving && to != from && driver_->manual_remount(to)) {
+            // MOVING went out (the dwell is closed) and the stage turns to the phase's first
+            // position; the operator remounts the DUT there and calls continue.
+            state_ = State::Remount;
+            ROS_WARN(
+                "gimbal controller: remount the DUT for phase %s (it turns about its own %s "
+                "axis), then call %s",
+                core::phase_name(to), core::phase_name(to),
+                nh_.resolveName(names::kContinueService).c_str());
+          }
         } else {
           publish_command(now, GimbalCommand::DONE, schedule_[index_]);
           state_ = State::Done;
@@ -447,7 +628,9 @@ double GimbalControllerNode::time_left_s(const ros::Time& now) const {
   switch (state_) {
     case State::Idle: return total + options_.start_delay_s;
     case State::Starting: return total + std::max(0.0, (start_at_ - now).toSec());
-    case State::Moving: return std::max(0.0, total - std::min(p.settled_s, p.move_start_s + since));
+    case State::Moving:
+    case State::Remount:
+      return std::max(0.0, total - std::min(p.settled_s, p.move_start_s + since));
     case State::Dwelling:
       return std::max(0.0, total - std::min(p.dwell_end_s, p.settled_s + since));
     default: return 0.0;
@@ -457,7 +640,7 @@ double GimbalControllerNode::time_left_s(const ros::Time& now) const {
 void GimbalControllerNode::publish_progress(const ros::Time& now, bool log) {
   last_progress_ = now;
   const core::ScheduledPosition& p = schedule_[std::min(index_, schedule_.size() - 1)];
-  const bool running = state_ == State::Moving || state_ == State::Dwelling;
+  const bool running = this->running();
   // 1-based number of the position being visited; all of them once done.
   const std::size_t position =
       state_ == State::Done ? schedule_.size() : (running ? index_ + 1 : 0);
@@ -469,8 +652,9 @@ void GimbalControllerNode::publish_progress(const ros::Time& now, bool log) {
   diagnostic_msgs::DiagnosticStatus msg;
   msg.name = nh_.resolveName("gimbal_controller");
   msg.hardware_id = driver_->name();
-  msg.level = state_ == State::Aborted ? diagnostic_msgs::DiagnosticStatus::ERROR
-                                       : diagnostic_msgs::DiagnosticStatus::OK;
+  msg.level = state_ == State::Aborted   ? diagnostic_msgs::DiagnosticStatus::ERROR
+              : state_ == State::Remount ? diagnostic_msgs::DiagnosticStatus::WARN
+                                         : diagnostic_msgs::DiagnosticStatus::OK;
   std::ostringstream text;
   text << state_name(state_);
   if (running) {
@@ -478,6 +662,10 @@ void GimbalControllerNode::publish_progress(const ros::Time& now, bool log) {
     if (core::is_closing_step(p.step, p.steps)) text << " (closing position, 360 deg)";
   }
   if (state_ == State::Aborted) text << ": " << last_error_;
+  if (state_ == State::Remount) {
+    text << ": remount the DUT to turn about its own " << core::phase_name(p.phase)
+         << " axis, then call " << nh_.resolveName(names::kContinueService);
+  }
   msg.message = text.str();
   msg.values.push_back(kv("state", state_name(state_)));
   msg.values.push_back(kv("phase", running ? core::phase_name(p.phase) : ""));

@@ -124,6 +124,22 @@ class FakeStand {
     carry_out(run, run->on_controller_state("IDLE", "IDLE"));
   }
 
+  // The gimbal faults now at (phase, step) (a serial gimbal's alarm, error or lost port): the
+  // controller stops, publishes DONE for that position, and says ABORTED with the device's words.
+  void controller_fault(CalibrationRun* run, Phase phase, std::uint32_t step,
+                        const std::string& words) {
+    stream_.resize(cursor_);
+    GimbalEvent done;
+    done.stamp_s = now_s_;
+    done.phase = phase;
+    done.step = step;
+    done.steps = 4;
+    done.angle_rad = 2.0 * 3.14159265358979 * step / 4.0;
+    done.state = GimbalState::Done;
+    carry_out(run, run->on_command(done));
+    carry_out(run, run->on_controller_state("ABORTED", "ABORTED: gimbal fault: " + words));
+  }
+
   void carry_out(CalibrationRun* run, const RunActions& actions) {
     for (const RunAction& a : actions) {
       switch (a.kind) {
@@ -504,6 +520,77 @@ TEST(CalibrationRun, ControllerAbortEndsTheRunWithItsReason) {
   EXPECT_EQ(run.status(stand.now_s_).fault, "limit switch hit");
   EXPECT_NE(run.missing_message().find("aborted by the gimbal controller: limit switch hit"),
             std::string::npos);
+}
+
+TEST(CalibrationRun, ControllerFaultInAMoveIsRetriedAtItsPosition) {
+  FakeStand stand;
+  const auto dwell = stand.dwell_interval(Phase::X, 2);
+  RunOptions o = options_for(4);
+  o.retry_on_fault = true;
+  CalibrationRun run(o);
+  stand.play(&run, dwell.first - 0.1);  // moving to x/2
+  stand.controller_fault(&run, Phase::X, 2, "grbl: alarm 'ALARM:1' (Hard limit triggered.)");
+  EXPECT_EQ(run.state(), RunState::WaitingForResume);  // not aborted: it will be retried
+  stand.play(&run);
+  ASSERT_EQ(stand.resumes_.size(), 1u);
+  EXPECT_EQ(stand.resumes_[0].phase, Phase::X);
+  EXPECT_EQ(stand.resumes_[0].step, 2u);
+  EXPECT_FALSE(stand.resumes_[0].after);
+  EXPECT_NE(stand.resumes_[0].reason.find("ALARM:1"), std::string::npos)
+      << stand.resumes_[0].reason;
+  EXPECT_NE(run.status(stand.now_s_).last_fault.find("Hard limit"), std::string::npos);
+  EXPECT_EQ(run.status(stand.now_s_).retries, 1u);
+  EXPECT_EQ(run.state(), RunState::Done);
+  ASSERT_EQ(stand.fitted_.size(), 1u);
+  expect_complete_table(stand.fitted_[0], 4);
+}
+
+TEST(CalibrationRun, ControllerFaultInADwellMeasuresItAgain) {
+  FakeStand stand;
+  const auto dwell = stand.dwell_interval(Phase::Y, 1);
+  RunOptions o = options_for(4);
+  o.retry_on_fault = true;
+  CalibrationRun run(o);
+  stand.play(&run, dwell.first + 0.4);  // in the dwell of y/1
+  stand.controller_fault(&run, Phase::Y, 1, "smc100: serial port /dev/ttyUSB0 lost: end of file");
+  stand.play(&run);
+  ASSERT_EQ(stand.resumes_.size(), 1u);
+  EXPECT_EQ(stand.resumes_[0].phase, Phase::Y);
+  EXPECT_EQ(stand.resumes_[0].step, 1u);
+  EXPECT_EQ(run.state(), RunState::Done);
+  ASSERT_EQ(stand.fitted_.size(), 1u);
+  // The dwell the fault cut short is not in the table: y/1 once, measured in full.
+  expect_complete_table(stand.fitted_[0], 4);
+}
+
+TEST(CalibrationRun, ControllerFaultWithoutRetryAbortsAndKeepsTheDwells) {
+  FakeStand stand;
+  const auto dwell = stand.dwell_interval(Phase::X, 3);
+  CalibrationRun run(options_for(4));
+  stand.play(&run, dwell.first - 0.1);
+  stand.controller_fault(&run, Phase::X, 3, "grbl: 'G21 G90 G0 X270.0000' answered 'error:9'");
+  stand.play(&run);
+  EXPECT_TRUE(stand.resumes_.empty());
+  EXPECT_EQ(run.state(), RunState::Aborted);
+  EXPECT_NE(run.missing_message().find("error:9"), std::string::npos) << run.missing_message();
+  EXPECT_EQ(stand.checkpoint_rows_.size(), 3u);  // x/0, x/1, x/2
+}
+
+TEST(CalibrationRun, ControllerFaultGivesUpAfterMaxRetries) {
+  FakeStand stand;
+  const auto dwell = stand.dwell_interval(Phase::X, 1);
+  RunOptions o = options_for(4);
+  o.retry_on_fault = true;
+  o.max_retries = 0;
+  CalibrationRun run(o);
+  stand.play(&run, dwell.first - 0.1);
+  stand.controller_fault(&run, Phase::X, 1, "grbl: no reply on /dev/ttyACM0 within 2 s");
+  stand.play(&run);
+  EXPECT_TRUE(stand.resumes_.empty());
+  EXPECT_EQ(run.state(), RunState::Aborted);
+  EXPECT_NE(run.status(stand.now_s_).fault.find("no reply on /dev/ttyACM0"), std::string::npos)
+      << run.status(stand.now_s_).fault;
+  EXPECT_EQ(stand.checkpoint_rows_.size(), 1u);  // x/0 kept
 }
 
 TEST(CalibrationRun, ResetDuringTheFitWithholdsItsResult) {

@@ -149,7 +149,10 @@ class CalibrationRun {
   // An IMU sample (any stamp order within the reorder window).
   RunActions on_sample(const ImuSample& sample);
   // The gimbal controller's state on its progress topic ("IDLE", "MOVING", "SETTLED", "DONE",
-  // "ABORTED", ...); `message` carries "ABORTED: <reason>".
+  // "ABORTED", "REMOUNT", ...); `message` carries "ABORTED: <reason>". A controller that aborts
+  // by itself (a gimbal fault: the device's alarm, error, silence, a lost port) is a fault of
+  // the position it was at: with retry_on_fault that position is measured again once the
+  // reorder window has passed (the dwells before it are kept), otherwise the run is aborted.
   RunActions on_controller_state(const std::string& state, const std::string& message);
   // Time passes: releases buffered messages older than now - reorder window, runs the watchdogs,
   // decides to fit after DONE, and hands out a due controller request (ResumeAt or Abort).
@@ -273,6 +276,20 @@ class CalibrationRun {
   GimbalEvent live_dwell_;
   double newest_sample_stamp_s_ = -std::numeric_limits<double>::infinity();
   std::vector<Announced> announced_;
+  // The latest gimbal command in arrival order (the position a controller fault belongs to).
+  bool have_last_event_ = false;
+  GimbalEvent last_event_;
+  // A controller fault to be retried at tick() once the reorder window has passed.
+  struct ControllerFault {
+    std::string reason;
+    Phase phase = Phase::X;
+    std::uint32_t step = 0;
+    bool in_dwell = false;  // the fault came during the dwell (it is measured again)
+    double stamp_s = 0.0;   // of the position's latest command
+  };
+  bool controller_fault_pending_ = false;
+  ControllerFault controller_fault_;
+  void retry_controller_fault();
 };
 
 }  // namespace core

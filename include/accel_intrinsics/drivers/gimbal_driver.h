@@ -15,6 +15,7 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -52,6 +53,13 @@ struct GimbalTarget {
 // The target of one position of the schedule.
 GimbalTarget target_of(const core::ScheduledPosition& position);
 
+// A fault of a hardware gimbal (serial_gimbal.h); what() carries the device's own words. The
+// controller aborts the run with it.
+class GimbalFault : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 class GimbalDriver {
  public:
   virtual ~GimbalDriver() = default;
@@ -68,6 +76,17 @@ class GimbalDriver {
   virtual void stop(double t_s) = 0;
   // True orientation of the DUT at t_s (encoders on hardware; the model in simulation).
   virtual GimbalTransforms orientation(double t_s) const = 0;
+  // Talks to the hardware (status polls); the controller calls it every tick before settled()
+  // and orientation(). May throw GimbalFault, as may move_to(); stop() never throws.
+  virtual void update(double /*t_s*/) {}
+  // True when the DUT is remounted by hand before `phase` (a one-axis stage): the controller
+  // pauses at the phase change until gimbal_controller/continue.
+  virtual bool manual_remount(core::Phase /*phase*/) const { return false; }
+  // After a GimbalFault: brings the device back (reconnect, reset, homing as configured) so that
+  // the protocol can continue; throws GimbalFault with the device's words when it cannot.
+  virtual void recover(double /*t_s*/) {}
+  // The device's latest status in its own words ("" when it has none), for messages.
+  virtual std::string status_text() const { return ""; }
 };
 
 // The simulated gimbal. Its effects are the gimbal side of DESIGN.md section 3 and are read from

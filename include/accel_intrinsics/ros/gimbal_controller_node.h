@@ -10,6 +10,14 @@
 // phase, step, approach, after = the position after that one, reason) answers with the stamp of
 // the MOVING (or DONE) it published. gimbal_controller/abort (std_srvs/Trigger, as start) aborts
 // by hand; gimbal_controller/abort_run (srv/AbortRun.srv) aborts with a reason.
+//
+// Hardware (DESIGN.md section 10): ~driver grbl or smc100 drive a serial gimbal (serial_gimbal.h)
+// configured under ~grbl/... or ~smc100/... (port, timeouts, settling, homing, and the per-phase
+// axis map ~<driver>/phases/{x,y,z}: axis, sign, zero_deg, hold, manual_remount). A fault of the
+// device aborts the run with the device's words. Before a phase that needs a manual remount the
+// controller publishes MOVING for the phase's first position (closing the last dwell), turns the
+// stage to that position, and waits in state REMOUNT (progress topic) until
+// gimbal_controller/continue (std_srvs/Trigger); then the move is issued again and settles.
 #pragma once
 
 #include <diagnostic_updater/diagnostic_updater.h>
@@ -26,6 +34,7 @@
 #include "accel_intrinsics/ResumeAt.h"
 #include "accel_intrinsics/core/protocol.h"
 #include "accel_intrinsics/drivers/gimbal_driver.h"
+#include "accel_intrinsics/drivers/serial_gimbal.h"
 
 namespace accel_intrinsics {
 
@@ -42,6 +51,7 @@ struct GimbalControllerOptions {
   int resume_approach = +1;          // +1: the up sweep, -1: the return sweep (two_way)
   std::string driver = "simulated";  // gimbal backend
   SimulatedGimbalOptions simulated;  // ~simulated/...: move and settling model, gimbal effects
+  SerialGimbalOptions serial;        // ~grbl/... or ~smc100/...: port, settling, axis map
   std::string world_frame = "world";
   std::string gimbal_frame = "gimbal";
   std::string dut_frame = "dut";
@@ -60,7 +70,7 @@ std::unique_ptr<GimbalDriver> make_gimbal_driver(const GimbalControllerOptions& 
 
 class GimbalControllerNode {
  public:
-  enum class State { Idle, Starting, Moving, Dwelling, Done, Aborted };
+  enum class State { Idle, Starting, Moving, Dwelling, Remount, Done, Aborted };
 
   GimbalControllerNode(ros::NodeHandle nh, ros::NodeHandle pnh,
                        const GimbalControllerOptions& options,
@@ -72,6 +82,9 @@ class GimbalControllerNode {
   bool start(const ros::Time& now, std::string* message);
   // Stops a run (what the abort service does); publishes DONE to close the open dwell.
   bool abort(const ros::Time& now, const std::string& reason, std::string* message);
+  // Ends a manual remount (what the continue service does): the stage moves to the phase's
+  // first position again and settles. False with a reason when not in REMOUNT.
+  bool continue_after_remount(const ros::Time& now, std::string* message);
   // Moves to schedule position `index` now and continues the protocol from there, from any
   // state; index == size publishes DONE. Fills message (ends with "stamp=<t>").
   bool resume(const ros::Time& now, std::size_t index, const std::string& reason,
@@ -87,9 +100,16 @@ class GimbalControllerNode {
   bool on_start(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool on_abort(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool on_abort_run(AbortRun::Request& req, AbortRun::Response& res);
+  bool on_continue(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool on_resume(ResumeAt::Request& req, ResumeAt::Response& res);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
   void begin_move(std::size_t index, const ros::Time& now);
+  // Starts the driver's move to the current position; a GimbalFault aborts the run (false).
+  bool drive(const ros::Time& now);
+  void driver_fault(const ros::Time& now, const std::string& what);
+  bool running() const {
+    return state_ == State::Moving || state_ == State::Dwelling || state_ == State::Remount;
+  }
   void publish_command(const ros::Time& now, std::uint8_t state, const core::ScheduledPosition& p);
   void publish_tf(const ros::Time& now);
   void publish_progress(const ros::Time& now, bool log);
@@ -99,7 +119,7 @@ class GimbalControllerNode {
   GimbalControllerOptions options_;
   std::unique_ptr<GimbalDriver> driver_;
   ros::Publisher command_pub_, tf_pub_, progress_pub_;
-  ros::ServiceServer start_srv_, abort_srv_, abort_run_srv_, resume_srv_;
+  ros::ServiceServer start_srv_, abort_srv_, abort_run_srv_, resume_srv_, continue_srv_;
   ros::Timer timer_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
 
@@ -114,6 +134,9 @@ class GimbalControllerNode {
   bool autostart_pending_ = false;
   std::size_t start_index_ = 0;  // where the next start begins (resume_* parameters)
   std::uint64_t resumes_ = 0;
+  bool faulted_ = false;  // the driver raised a GimbalFault: recover() before moving again
+  // Recovers a faulted driver; false with the reason in last_error_.
+  bool recover_driver(const ros::Time& now);
 };
 
 }  // namespace accel_intrinsics

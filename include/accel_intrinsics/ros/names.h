@@ -28,6 +28,8 @@ constexpr char kAnalysisTopic[] = "calibration/analysis";
 constexpr char kAnalyzeService[] = "calibration/analyze";
 // accel_intrinsics/ResumeAt: continue the protocol at (phase, step, approach), or after it.
 constexpr char kResumeService[] = "gimbal_controller/resume";
+// std_srvs/Trigger: the operator has remounted the DUT by hand; continue (DESIGN.md section 10).
+constexpr char kContinueService[] = "gimbal_controller/continue";
 
 // sensor_msgs/Imu: the apply node's output, linear_acceleration = P (R - O) (DESIGN.md section 7).
 constexpr char kCalibratedImuTopic[] = "imu/data_calibrated";

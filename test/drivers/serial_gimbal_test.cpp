@@ -1,0 +1,452 @@
+// The serial gimbal drivers (GRBL, SMC100) against their emulators over a real pseudo-terminal:
+// moves, settling, the reported orientation, homing, stop, and every injected serial fault,
+// whose message must carry the device's own words.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <thread>
+
+#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/drivers/emulators.h"
+#include "accel_intrinsics/drivers/grbl_driver.h"
+#include "accel_intrinsics/drivers/smc100_driver.h"
+
+namespace ai = accel_intrinsics;
+using ai::core::Phase;
+
+namespace {
+
+double wall_s() {
+  static const auto start = std::chrono::steady_clock::now();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// Runs an emulator on its own thread for the life of the fixture.
+class Served {
+ public:
+  explicit Served(std::unique_ptr<ai::DeviceEmulator> emulator) : emulator_(std::move(emulator)) {
+    thread_ = std::thread([this] { emulator_->run(stop_); });
+  }
+  ~Served() {
+    stop_ = true;
+    thread_.join();
+  }
+  ai::DeviceEmulator& operator*() { return *emulator_; }
+  ai::DeviceEmulator* operator->() { return emulator_.get(); }
+
+ private:
+  std::unique_ptr<ai::DeviceEmulator> emulator_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+// Two-axis map: x and y turn the first axis (y with the second held at 90 deg), z the second.
+ai::SerialGimbalOptions two_axis(const std::string& port, const std::string& a,
+                                 const std::string& b) {
+  ai::SerialGimbalOptions o;
+  o.port = port;
+  o.reply_timeout_s = 0.5;
+  o.poll_interval_s = 0.01;
+  o.settle_s = 0.2;
+  o.connect_timeout_s = 0.5;
+  o.axis_map.phases[0].axis = a;
+  o.axis_map.phases[0].hold[b] = 0.0;
+  o.axis_map.phases[1].axis = a;
+  o.axis_map.phases[1].hold[b] = 90.0;
+  o.axis_map.phases[2].axis = b;
+  o.axis_map.phases[2].sign = -1.0;
+  o.axis_map.phases[2].zero_deg = 10.0;
+  o.axis_map.phases[2].hold[a] = 90.0;
+  return o;
+}
+
+ai::GimbalTarget target(Phase phase, double angle_deg) {
+  ai::GimbalTarget t;
+  t.phase = phase;
+  t.angle_rad = angle_deg * ai::core::kPi / 180.0;
+  return t;
+}
+
+// Polls until settled (true) or the wall-clock limit (false); faults propagate.
+bool wait_settled(ai::GimbalDriver& driver, double limit_s = 10.0) {
+  const double end = wall_s() + limit_s;
+  while (wall_s() < end) {
+    driver.update(wall_s());
+    if (driver.settled(wall_s())) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return false;
+}
+
+// The message of the GimbalFault a move (and the wait for it) raises; "" when none.
+std::string fault_of_move(ai::GimbalDriver& driver, const ai::GimbalTarget& t) {
+  try {
+    driver.move_to(t, wall_s());
+    wait_settled(driver, 5.0);
+  } catch (const ai::GimbalFault& e) {
+    return e.what();
+  }
+  return "";
+}
+
+double reported_alpha_deg(const ai::GimbalDriver& driver, Phase phase) {
+  // Recover alpha from the broadcast orientation: the DUT's specific force is eq. (4).
+  const Eigen::Matrix3d R = driver.orientation(wall_s()).world_dut();
+  const Eigen::Vector3d f = R.transpose() * Eigen::Vector3d::UnitZ();
+  switch (phase) {
+    case Phase::X: return std::atan2(f.y(), f.z()) * 180.0 / ai::core::kPi;
+    case Phase::Y: return std::atan2(f.x(), f.z()) * 180.0 / ai::core::kPi;
+    default: return std::atan2(f.x(), f.y()) * 180.0 / ai::core::kPi;
+  }
+}
+
+bool contains(const std::vector<std::string>& v, const std::string& s) {
+  return std::find(v.begin(), v.end(), s) != v.end();
+}
+
+ai::EmulatorOptions fast() {
+  ai::EmulatorOptions e;
+  e.rate_deg_s = 900.0;
+  e.home_s = 0.2;
+  return e;
+}
+
+}  // namespace
+
+TEST(AxisMap, PositionsAndAlphaRoundTrip) {
+  const ai::AxisMap map = two_axis("p", "X", "Y").axis_map;
+  const auto z = map.positions_deg(Phase::Z, 30.0 * ai::core::kPi / 180.0);
+  EXPECT_NEAR(z.at("Y"), 10.0 - 30.0, 1e-12);
+  EXPECT_NEAR(z.at("X"), 90.0, 1e-12);
+  EXPECT_NEAR(map.alpha_rad(Phase::Z, -20.0), 30.0 * ai::core::kPi / 180.0, 1e-12);
+  EXPECT_NO_THROW(map.validate({"X", "Y", "Z"}));
+}
+
+TEST(AxisMap, OneAxisStageNeedsManualRemount) {
+  ai::AxisMap map;
+  for (auto& p : map.phases) p.axis = "1";
+  try {
+    map.validate({});
+    FAIL() << "accepted three phases on one axis without a remount";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("phases.y.manual_remount"), std::string::npos) << e.what();
+  }
+  map.phases[1].manual_remount = map.phases[2].manual_remount = true;
+  EXPECT_NO_THROW(map.validate({}));
+  map.phases[0].sign = 2.0;
+  EXPECT_THROW(map.validate({}), std::invalid_argument);
+}
+
+TEST(Grbl, ParsesStatusReports) {
+  ai::GrblStatus s;
+  ASSERT_TRUE(
+      ai::parse_grbl_status("<Hold:0|MPos:1.000,-2.500,3.000|FS:0,0|WCO:0.000,1.000,0.000>", &s));
+  EXPECT_EQ(s.state, "Hold");
+  EXPECT_EQ(s.full_state, "Hold:0");
+  ASSERT_EQ(s.mpos.size(), 3u);
+  EXPECT_DOUBLE_EQ(s.mpos[1], -2.5);
+  EXPECT_DOUBLE_EQ(s.wco[1], 1.0);
+  EXPECT_FALSE(ai::parse_grbl_status("<Bogus|MPos:1,2,3>", &s));
+  EXPECT_FALSE(ai::parse_grbl_status("<Idle|MPos:1,x,3>", &s));
+  EXPECT_FALSE(ai::parse_grbl_status("Idle|MPos:1,2,3", &s));
+}
+
+TEST(Grbl, MovesSettlesAndReportsThePosition) {
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(fast())));
+  ai::GrblDriver driver(two_axis(emu->port(), "X", "Y"));
+  for (const auto& step : {std::make_pair(Phase::X, 90.0), std::make_pair(Phase::Y, 45.0),
+                           std::make_pair(Phase::Z, 120.0)}) {
+    const double t0 = wall_s();
+    driver.move_to(target(step.first, step.second), t0);
+    ASSERT_TRUE(wait_settled(driver)) << driver.status_text();
+    // At rest at the target for settle_s before SETTLED.
+    EXPECT_GE(driver.settled_at(wall_s()), t0 + 0.2);
+    EXPECT_NEAR(reported_alpha_deg(driver, step.first), step.second, 0.01);
+  }
+  const auto commands = emu->commands();
+  ASSERT_FALSE(commands.empty());
+  EXPECT_EQ(commands.front(), "^X");  // soft reset at start
+  EXPECT_TRUE(contains(commands, "G21 G90 G0 X90.0000 Y0.0000"));
+  EXPECT_TRUE(contains(commands, "G21 G90 G0 X45.0000 Y90.0000"));
+  EXPECT_TRUE(contains(commands, "G21 G90 G0 X90.0000 Y-110.0000"));
+  for (const std::string& c : commands) {
+    EXPECT_TRUE(c == "?" || c == "^X" || c.rfind("G21 G90 G0 ", 0) == 0) << "unexpected: " << c;
+  }
+}
+
+TEST(Grbl, ReportsTheMotionWhileMoving) {
+  ai::EmulatorOptions e = fast();
+  e.rate_deg_s = 90.0;
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  ai::GrblDriver driver(two_axis(emu->port(), "X", "Y"));
+  driver.move_to(target(Phase::X, 90.0), wall_s());
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  driver.update(wall_s());
+  EXPECT_FALSE(driver.settled(wall_s()));
+  const double mid = reported_alpha_deg(driver, Phase::X);
+  EXPECT_GT(mid, 5.0);
+  EXPECT_LT(mid, 85.0);
+  ASSERT_TRUE(wait_settled(driver));
+}
+
+TEST(Grbl, HomesAtStartOrRefusesAnAlarm) {
+  ai::EmulatorOptions e = fast();
+  e.needs_homing = true;
+  {
+    Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+    try {
+      ai::GrblDriver driver(two_axis(emu->port(), "X", "Y"));
+      FAIL() << "started on a controller in alarm";
+    } catch (const ai::GimbalFault& f) {
+      EXPECT_NE(std::string(f.what()).find("alarm at start"), std::string::npos) << f.what();
+    }
+  }
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  ai::SerialGimbalOptions o = two_axis(emu->port(), "X", "Y");
+  o.home_at_start = true;
+  ai::GrblDriver driver(o);
+  EXPECT_TRUE(contains(emu->commands(), "$H"));
+  driver.move_to(target(Phase::X, 30.0), wall_s());
+  EXPECT_TRUE(wait_settled(driver));
+}
+
+TEST(Grbl, StopHoldsThenResetsAndKeepsWorking) {
+  ai::EmulatorOptions e = fast();
+  e.rate_deg_s = 60.0;
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  ai::GrblDriver driver(two_axis(emu->port(), "X", "Y"));
+  driver.move_to(target(Phase::X, 180.0), wall_s());
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  driver.stop(wall_s());
+  const auto commands = emu->commands();
+  const auto hold = std::find(commands.begin(), commands.end(), "!");
+  ASSERT_NE(hold, commands.end());
+  EXPECT_NE(std::find(hold, commands.end(), "^X"), commands.end());
+  driver.move_to(target(Phase::X, 10.0), wall_s());
+  EXPECT_TRUE(wait_settled(driver)) << driver.status_text();
+}
+
+struct FaultCase {
+  std::string fault;
+  std::vector<std::string> words;  // in the message
+};
+
+class GrblFault : public testing::TestWithParam<FaultCase> {};
+
+TEST_P(GrblFault, CarriesTheDevicesWords) {
+  ai::EmulatorOptions e = fast();
+  e.fault = GetParam().fault;
+  e.fault_after = 1;
+  e.rate_deg_s = 180.0;
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  ai::GrblDriver driver(two_axis(emu->port(), "X", "Y"));
+  ASSERT_EQ(fault_of_move(driver, target(Phase::X, 30.0)), "");  // the first move is fine
+  const std::string message = fault_of_move(driver, target(Phase::X, 90.0));
+  ASSERT_FALSE(message.empty()) << "no fault for " << GetParam().fault;
+  for (const std::string& w : GetParam().words) {
+    EXPECT_NE(message.find(w), std::string::npos) << "'" << w << "' not in: " << message;
+  }
+  driver.stop(wall_s());  // never throws, whatever the device does
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Serial, GrblFault,
+    testing::Values(FaultCase{"error", {"error:20", "G21 G90 G0 X90.0000", "Unsupported"}},
+                    FaultCase{"alarm", {"ALARM:1", "Hard limit"}},
+                    FaultCase{"garbage", {"unexpected reply", "\\x07#~q"}},
+                    FaultCase{"no_reply", {"no reply", "G21 G90 G0 X90.0000"}},
+                    FaultCase{"vanish", {"lost"}}),
+    [](const testing::TestParamInfo<FaultCase>& info) { return info.param.fault; });
+
+TEST(Smc100, HomesMovesSettlesAndReportsThePosition) {
+  ai::EmulatorOptions e = fast();
+  e.addresses = {1, 2};
+  e.needs_homing = true;
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::Smc100Emulator(e)));
+  ai::SerialGimbalOptions o = two_axis(emu->port(), "1", "2");
+  o.baud = 57600;
+  {
+    ai::SerialGimbalOptions no_home = o;
+    try {
+      ai::Smc100Driver driver(no_home);
+      FAIL() << "started on NOT REFERENCED controllers";
+    } catch (const ai::GimbalFault& f) {
+      EXPECT_NE(std::string(f.what()).find("1TS00000A"), std::string::npos) << f.what();
+      EXPECT_NE(std::string(f.what()).find("NOT REFERENCED"), std::string::npos) << f.what();
+    }
+  }
+  o.home_at_start = true;
+  ai::Smc100Driver driver(o);
+  EXPECT_TRUE(contains(emu->commands(), "1OR"));
+  EXPECT_TRUE(contains(emu->commands(), "2OR"));
+  for (const auto& step : {std::make_pair(Phase::X, 90.0), std::make_pair(Phase::Z, 200.0)}) {
+    driver.move_to(target(step.first, step.second), wall_s());
+    ASSERT_TRUE(wait_settled(driver)) << driver.status_text();
+    EXPECT_NEAR(reported_alpha_deg(driver, step.first),
+                step.second > 180.0 ? step.second - 360.0 : step.second, 0.01);
+  }
+  const auto commands = emu->commands();
+  EXPECT_TRUE(contains(commands, "1PA90.0000"));
+  EXPECT_TRUE(contains(commands, "2PA0.0000"));
+  EXPECT_TRUE(contains(commands, "2PA-190.0000"));
+  for (const std::string& c : commands) {
+    const std::string body = c.substr(1);
+    EXPECT_TRUE(body == "TS?" || body == "TP?" || body == "TE?" || body == "OR" ||
+                body.rfind("PA", 0) == 0)
+        << "unexpected: " << c;
+  }
+}
+
+class Smc100Fault : public testing::TestWithParam<FaultCase> {};
+
+TEST_P(Smc100Fault, CarriesTheDevicesWords) {
+  ai::EmulatorOptions e = fast();
+  e.fault = GetParam().fault;
+  e.fault_after = 1;
+  e.rate_deg_s = 180.0;
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::Smc100Emulator(e)));
+  ai::SerialGimbalOptions o;
+  o.port = emu->port();
+  o.baud = 57600;
+  o.reply_timeout_s = 0.5;
+  o.poll_interval_s = 0.01;
+  o.settle_s = 0.1;
+  for (int p = 0; p < 3; ++p) {
+    o.axis_map.phases[p].axis = "1";
+    o.axis_map.phases[p].manual_remount = p > 0;
+  }
+  ai::Smc100Driver driver(o);
+  ASSERT_EQ(fault_of_move(driver, target(Phase::X, 30.0)), "");
+  const std::string message = fault_of_move(driver, target(Phase::X, 90.0));
+  ASSERT_FALSE(message.empty()) << "no fault for " << GetParam().fault;
+  for (const std::string& w : GetParam().words) {
+    EXPECT_NE(message.find(w), std::string::npos) << "'" << w << "' not in: " << message;
+  }
+  driver.stop(wall_s());
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Serial, Smc100Fault,
+    testing::Values(FaultCase{"error", {"1TEG", "displacement out of limits", "1PA90.0000"}},
+                    FaultCase{"alarm", {"1TS00203D", "following error", "DISABLE from MOVING"}},
+                    FaultCase{"garbage", {"unexpected reply", "\\x07#~q"}},
+                    FaultCase{"no_reply", {"no reply", "1TE?"}}, FaultCase{"vanish", {"lost"}}),
+    [](const testing::TestParamInfo<FaultCase>& info) { return info.param.fault; });
+
+TEST(SerialPort, MissingPortSaysSo) {
+  ai::SerialGimbalOptions o = two_axis("/nonexistent/ttyACM9", "X", "Y");
+  o.connect_timeout_s = 0.0;
+  try {
+    ai::GrblDriver driver(o);
+    FAIL() << "opened a missing port";
+  } catch (const ai::GimbalFault& f) {
+    EXPECT_NE(std::string(f.what()).find("/nonexistent/ttyACM9"), std::string::npos) << f.what();
+    EXPECT_NE(std::string(f.what()).find("No such file"), std::string::npos) << f.what();
+  }
+}
+
+TEST(Recover, GrblAlarmIsHomedAwayAndTheStageMovesAgain) {
+  ai::EmulatorOptions e = fast();
+  e.needs_homing = true;
+  e.fault = "alarm";
+  e.fault_after = 0;
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  ai::SerialGimbalOptions o = two_axis(emu->port(), "X", "Y");
+  o.home_at_start = true;
+  ai::GrblDriver driver(o);
+  EXPECT_NE(fault_of_move(driver, target(Phase::X, 120.0)).find("ALARM:1"), std::string::npos);
+  driver.recover(wall_s());
+  const auto commands = emu->commands();
+  EXPECT_EQ(std::count(commands.begin(), commands.end(), "^X"), 2);
+  EXPECT_EQ(std::count(commands.begin(), commands.end(), "$H"), 2);
+  EXPECT_EQ(fault_of_move(driver, target(Phase::X, 120.0)), "");
+  EXPECT_NEAR(reported_alpha_deg(driver, Phase::X), 120.0, 0.01);
+}
+
+TEST(Recover, GrblAlarmIsUnlockedOnlyWhenConfigured) {
+  ai::EmulatorOptions e = fast();
+  e.needs_homing = true;
+  e.fault = "alarm";
+  e.fault_after = 0;
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  ai::SerialGimbalOptions o = two_axis(emu->port(), "X", "Y");
+  o.unlock_at_start = true;
+  ai::GrblDriver driver(o);
+  EXPECT_TRUE(contains(emu->commands(), "$X"));
+  EXPECT_NE(fault_of_move(driver, target(Phase::X, 120.0)).find("ALARM:1"), std::string::npos);
+  EXPECT_NO_THROW(driver.recover(wall_s()));  // unlock_at_start: $X again
+  const auto commands = emu->commands();
+  EXPECT_EQ(std::count(commands.begin(), commands.end(), "$X"), 2);
+  EXPECT_EQ(fault_of_move(driver, target(Phase::X, 60.0)), "");
+
+  // Neither homing nor unlocking allowed: the recovery fails and says what to do.
+  Served emu2(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  ai::SerialGimbalOptions o2 = two_axis(emu2->port(), "X", "Y");
+  o2.home_at_start = true;
+  ai::GrblDriver driver2(o2);
+  EXPECT_FALSE(fault_of_move(driver2, target(Phase::X, 120.0)).empty());
+  ai::SerialGimbalOptions o3 = o2;
+  o3.home_at_start = false;
+  ai::GrblDriver* bare = nullptr;
+  try {
+    bare = new ai::GrblDriver(o3);  // a fresh driver on the alarmed controller
+    FAIL() << "started on a controller in alarm";
+  } catch (const ai::GimbalFault& f) {
+    EXPECT_NE(std::string(f.what()).find("home_at_start"), std::string::npos) << f.what();
+    EXPECT_NE(std::string(f.what()).find("unlock_at_start"), std::string::npos) << f.what();
+  }
+  delete bare;
+}
+
+TEST(Recover, Smc100FollowingErrorIsResetAndHomed) {
+  ai::EmulatorOptions e = fast();
+  e.needs_homing = true;
+  e.fault = "alarm";
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::Smc100Emulator(e)));
+  ai::SerialGimbalOptions o;
+  o.port = emu->port();
+  o.baud = 57600;
+  o.reply_timeout_s = 0.5;
+  o.poll_interval_s = 0.01;
+  o.settle_s = 0.1;
+  o.home_at_start = true;
+  for (int p = 0; p < 3; ++p) {
+    o.axis_map.phases[p].axis = "1";
+    o.axis_map.phases[p].manual_remount = p > 0;
+  }
+  ai::Smc100Driver driver(o);
+  EXPECT_NE(fault_of_move(driver, target(Phase::X, 90.0)).find("following error"),
+            std::string::npos);
+  driver.recover(wall_s());
+  const auto commands = emu->commands();
+  EXPECT_TRUE(contains(commands, "1RS"));
+  EXPECT_EQ(std::count(commands.begin(), commands.end(), "1OR"), 2);
+  EXPECT_EQ(fault_of_move(driver, target(Phase::X, 90.0)), "");
+  EXPECT_NEAR(reported_alpha_deg(driver, Phase::X), 90.0, 0.01);
+}
+
+TEST(Recover, Smc100WithoutHomingSaysWhatToDo) {
+  ai::EmulatorOptions e = fast();
+  e.fault = "alarm";
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::Smc100Emulator(e)));
+  ai::SerialGimbalOptions o;
+  o.port = emu->port();
+  o.reply_timeout_s = 0.5;
+  o.poll_interval_s = 0.01;
+  o.settle_s = 0.1;
+  for (int p = 0; p < 3; ++p) {
+    o.axis_map.phases[p].axis = "1";
+    o.axis_map.phases[p].manual_remount = p > 0;
+  }
+  ai::Smc100Driver driver(o);
+  EXPECT_FALSE(fault_of_move(driver, target(Phase::X, 90.0)).empty());
+  try {
+    driver.recover(wall_s());
+    FAIL() << "recovered a DISABLEd controller without being allowed to reset it";
+  } catch (const ai::GimbalFault& f) {
+    EXPECT_NE(std::string(f.what()).find("DISABLE from MOVING"), std::string::npos) << f.what();
+  }
+}
