@@ -554,6 +554,7 @@ TEST(OfflineFit, SimulatedRecordingMatchesInProcessPipeline) {
   const json j = load_json(dir.file("sim.json"));
   core::CalibrationReport report;
   report.base_fit = report.certificate = expected;
+  report.noise = core::dwell_noise(assembler.table());  // calibrate() adds the dwells' noise
   EXPECT_EQ(fit_part(j), fit_part(json::parse(ai::io::result_json_text(report, {}))));
   EXPECT_EQ(j["positions"]["z"], 8);
   const char* names[] = {"u", "v", "w"};
