@@ -5,8 +5,10 @@
 namespace accel_intrinsics {
 namespace core {
 
-CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
-                            const CalibrateOptions& options) {
+namespace {
+
+CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* raw,
+                                  const CalibrateOptions& options) {
   CalibrationReport report;
   report.certificate_refit_policy = options.certificate_refit;
   report.base_fit = fit(table, options.fit);
@@ -33,6 +35,15 @@ CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
     report.certificate = report.analysis->after_fit;
     report.certificate_is_refit = true;
   }
+  return report;
+}
+
+}  // namespace
+
+CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
+                            const CalibrateOptions& options) {
+  CalibrationReport report = fit_and_analyze(table, raw, options);
+  if (options.budget) report.budget = uncertainty_budget(table, report.certificate, *options.budget);
   return report;
 }
 

@@ -1,6 +1,8 @@
 #include "accel_intrinsics/ros/offline_fit.h"
 
 #include <array>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <iomanip>
 #include <memory>
@@ -8,10 +10,15 @@
 #include <sstream>
 #include <vector>
 
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include "accel_intrinsics/core/calibrate.h"
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/io/atomic_file.h"
+#include "accel_intrinsics/io/budget_file.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/io/text_report.h"
 #include "accel_intrinsics/ros/bag_input.h"
@@ -201,8 +208,36 @@ void check_command_line(const OfflineFitArguments& args) {
       << kMinGravity << ", " << kMaxGravity << "))";
     throw Failure{kOfflineFitBadCommandLine, s.str()};
   }
+  if (!args.report_pdf.empty() &&
+      (args.report_pdf == args.json_out || args.report_pdf == args.csv_out)) {
+    throw Failure{kOfflineFitBadCommandLine, "--report names the same file as --json or --csv-out"};
+  }
   if (!args.json_out.empty() && args.json_out == args.csv_out) {
     throw Failure{kOfflineFitBadCommandLine, "--json and --csv-out name the same file"};
+  }
+}
+
+// Runs /usr/bin/python3 certificate_report --out PDF JSON on the result (a temporary copy); the
+// script writes the PDF atomically and prints one line on failure.
+void write_certificate(const std::string& json, const std::string& pdf) {
+  const std::string script = certificate_script_path();
+  const std::string tmp = pdf + ".json.tmp." + std::to_string(::getpid());
+  io::write_file_atomically(tmp, json);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const char* argv[] = {"/usr/bin/python3", script.c_str(), "--out", pdf.c_str(), tmp.c_str(),
+                          nullptr};
+    ::execv(argv[0], const_cast<char* const*>(argv));
+    ::_exit(127);
+  }
+  int status = 0;
+  const bool ran = pid > 0 && ::waitpid(pid, &status, 0) == pid;
+  std::remove(tmp.c_str());
+  if (!ran || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    throw Failure{kOfflineFitBadInput,
+                  "--report: the certificate script " + script + " failed (exit status " +
+                      std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) +
+                      "); needs /usr/bin/python3 with matplotlib"};
   }
 }
 
@@ -216,8 +251,21 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   }
   options.fit.local_gravity = args.gravity;
   options.analyze = args.analyze;
+  io::BudgetFile budget_file;
+  if (!args.budget.empty()) {
+    try {
+      budget_file = io::read_budget_file(args.budget);
+    } catch (const io::IoError& e) {
+      throw Failure{kOfflineFitBadInput, as_one_line(e.what())};
+    }
+    options.budget = budget_file.spec;
+  }
 
-  const Input input = args.bag.empty() ? read_csv_input(args) : read_bag_input(args, err);
+  Input input = args.bag.empty() ? read_csv_input(args) : read_bag_input(args, err);
+  input.context.certificate = budget_file.certificate;
+  input.context.gravity_source =
+      args.gravity_given ? "offline_fit --gravity"
+                         : "standard gravity (offline_fit default; no --gravity given)";
   check_phases(input.table, options.fit.min_positions_per_phase);
 
   core::CalibrationReport report;
@@ -249,6 +297,7 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   }
   if (csv_file) csv_file->commit();
   if (json_file) json_file->commit();
+  if (!args.report_pdf.empty()) write_certificate(json, args.report_pdf);
 
   io::write_text_report(json_to_stdout ? err : out, report, input.context);
   if (json_to_stdout) out << json << std::flush;
@@ -260,6 +309,24 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
 }
 
 }  // namespace
+
+std::string certificate_script_path() {
+  const std::string name = "certificate_report";
+  auto exists = [](const std::string& path) {
+    struct stat info;
+    return ::stat(path.c_str(), &info) == 0;
+  };
+  if (const char* dir = std::getenv("ACCEL_INTRINSICS_SCRIPTS")) return std::string(dir) + "/" + name;
+  char self[4096];
+  const ssize_t n = ::readlink("/proc/self/exe", self, sizeof(self) - 1);
+  if (n > 0) {
+    self[n] = '\0';
+    std::string dir(self);
+    dir = dir.substr(0, dir.rfind('/'));
+    if (exists(dir + "/" + name)) return dir + "/" + name;
+  }
+  return std::string(ACCEL_INTRINSICS_SOURCE_DIR) + "/scripts/" + name;
+}
 
 std::string as_one_line(std::string text) {
   for (char& c : text) {

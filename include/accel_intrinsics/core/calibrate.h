@@ -12,6 +12,7 @@
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/protocol.h"
 #include "accel_intrinsics/core/raw_stream_analysis.h"
+#include "accel_intrinsics/core/uncertainty_budget.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -28,6 +29,8 @@ struct CalibrateOptions {
   AnalysisOptions analysis;  // its local_gravity is set from fit.local_gravity
   // Certificate = the analysis' refit when it named effects, else the base fit.
   bool certificate_refit = false;
+  // Type-B budget of the certificate (uncertainty_budget.h, DESIGN.md section 9); none: type A only.
+  std::optional<BudgetSpec> budget;
 };
 
 struct CalibrationReport {
@@ -40,12 +43,16 @@ struct CalibrationReport {
   // When analyze and raw commands were given: estimate_timing_lag with the analysis' refit and
   // timing_lag_options_beside_screen() (its false-alarm budget beside the dwell screen).
   std::optional<TimingLagEstimate> timing_lag;
+  // When options.budget: the certificate's uncertainty budget (type A plus the type-B sources).
+  std::optional<UncertaintyBudget> budget;
 };
 
 // Fit -> analysis -> timing lag. Throws FitError when the fit fails (the message says what is
 // missing; fit() may also throw std::invalid_argument for bad options). A failing analysis or
 // lag estimate does not throw: it leaves analysis_error and the base fit as the certificate.
-// `raw` may be null (a position table alone: no timing lag).
+// `raw` may be null (a position table alone: no timing lag). With options.budget, the budget of
+// the certificate is computed last (its refit failing throws FitError, an invalid spec
+// std::invalid_argument).
 CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
                             const CalibrateOptions& options);
 

@@ -22,6 +22,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <utility>
 #include <thread>
 #include <vector>
 
@@ -51,6 +52,10 @@ struct CalibrationOptions {
   double imu_coalesce_s = 0.001;  // nap of the network thread woken from idle, s
   bool resume = false;            // reload the checkpoint of output_dir at start
   std::string gimbal_controller = "gimbal_controller";  // the controller's node name (relative)
+  // budget_file (io/budget_file.h): its spec goes to calibrate.budget, its certificate block and
+  // the source of g to the result document.
+  std::vector<std::pair<std::string, std::string>> certificate;
+  std::string gravity_source;
 
   // Reads the private parameters; throws ParamError naming the parameter.
   static CalibrationOptions load(const ros::NodeHandle& pnh);

@@ -4,7 +4,7 @@
 //
 //   offline_fit (--bag FILE | --csv FILE) [--imu-topic T] [--command-topic T] [--gravity G]
 //               [--model joint|eq4] [--analyze] [--json OUT] [--csv-out FILE]
-//               [--settle-discard SECONDS]
+//               [--settle-discard SECONDS] [--budget FILE] [--report FILE.pdf]
 //
 // The bag goes through core::DwellAssembler (bag_input.h), the dwell assignment of the
 // calibration node, and the table through core::calibrate(), the node's pipeline, so the result
@@ -16,6 +16,11 @@
 // --settle-discard (default 0) drops the samples of the first SECONDS of each dwell (after
 // SETTLED), as the calibration node's settle_discard_s does: for a gimbal that still rings when
 // it reports settled. Bags only.
+//
+// --budget FILE (io/budget_file.h, config/uncertainty_budget.yaml) adds the type-B budget of the
+// certificate (core/uncertainty_budget.h) as `uncertainty_budget`, and the file's certificate
+// block as `certificate`. --report FILE.pdf writes the calibration certificate with
+// scripts/certificate_report (/usr/bin/python3, matplotlib), from the same JSON.
 #pragma once
 
 #include <iosfwd>
@@ -47,10 +52,13 @@ struct OfflineFitArguments {
   std::string json_out;  // "-": standard output (the text report then goes to `err`)
   std::string csv_out;
   double settle_discard_s = 0.0;
+  std::string budget;      // uncertainty budget file (YAML); empty: type A only
+  std::string report_pdf;  // certificate PDF; empty: none
   // Given explicitly (they apply to --bag only, and are refused with --csv).
   bool imu_topic_given = false;
   bool command_topic_given = false;
   bool settle_discard_given = false;
+  bool gravity_given = false;
 };
 
 // Runs the tool: the text report on `out` (on `err` when json_out is "-"), progress, warnings
@@ -58,6 +66,10 @@ struct OfflineFitArguments {
 // "offline_fit: error: ..." on `err` and writes no output file. Output files (json_out, csv_out)
 // appear only on success, each atomically (io/atomic_file.h).
 int run_offline_fit(const OfflineFitArguments& args, std::ostream& out, std::ostream& err);
+
+// The certificate script (scripts/certificate_report): $ACCEL_INTRINSICS_SCRIPTS/, else next to
+// the running executable (installed), else the package source's scripts/ (devel space).
+std::string certificate_script_path();
 
 // `text` with line breaks replaced by spaces (one-line error messages).
 std::string as_one_line(std::string text);
