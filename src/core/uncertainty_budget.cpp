@@ -121,8 +121,9 @@ UncertaintyBudget start_budget(const BudgetRefit& refit, const BudgetSpec& spec,
   UncertaintyBudget budget;
   budget.spec = spec;
   budget.method = std::string(method) + "; refit: " + refit.fit().model_label() +
-                  (refit.closed_form() ? " (closed form, linear in the dwell means)"
-                                       : " (linearized at the fitted device)");
+                  (!refit.closed_form() ? " (linearized at the fitted device)"
+                   : refit.uses_operator() ? " (closed form, linear in the dwell means)"
+                                           : " (closed form, core::fit per draw)");
   BudgetSource a;
   a.name = "type_a";
   a.input = std::numeric_limits<double>::quiet_NaN();
@@ -175,7 +176,19 @@ IntrinsicValues intrinsic_values(const Vector12d& theta) {
   return v;
 }
 
-BudgetRefit::BudgetRefit(const PositionTable& table, const FitResult& fit) : fit_(fit) {
+namespace {
+
+Vector12d theta_of_fit(const FitResult& r) {
+  Vector12d theta;
+  for (int k = 0; k < 9; ++k) theta(k) = r.S(k / 3, k % 3);
+  theta.tail<3>() = r.O;
+  return theta;
+}
+
+}  // namespace
+
+BudgetRefit::BudgetRefit(const PositionTable& table, const FitResult& fit, std::size_t draws)
+    : fit_(fit), base_(table) {
   geoms_ = dwell_geometries(table);
   if (geoms_.size() != table.rows.size())
     throw FitError("uncertainty budget: the position table's geometry does not match its rows");
@@ -183,36 +196,33 @@ BudgetRefit::BudgetRefit(const PositionTable& table, const FitResult& fit) : fit
   y0_ = simulate(RigErrors{});
 
   // The run's fit, on the noise-free outputs of the fitted device (weights: the run's std).
-  FitOptions options;
-  options.model = fit.model;
-  options.local_gravity = fit.local_gravity;
-  options.effects = fit.effects;  // fitted values: the starting guess
-  PositionTable base = table;
+  options_.model = fit.model;
+  options_.local_gravity = fit.local_gravity;
+  options_.effects = fit.effects;  // fitted values: the starting guess
   const std::size_t n = table.rows.size();
-  auto set_means = [&](const Eigen::VectorXd& y) {
-    for (std::size_t i = 0; i < n; ++i) base.rows[i].mean = y.segment<3>(3 * i);
-  };
   auto theta_of = [&](const Eigen::VectorXd& y) {
-    set_means(y);
-    const FitResult r = core::fit(base, options);
-    Vector12d theta;
-    for (int k = 0; k < 9; ++k) theta(k) = r.S(k / 3, k % 3);
-    theta.tail<3>() = r.O;
-    return theta;
+    for (std::size_t i = 0; i < n; ++i) base_.rows[i].mean = y.segment<3>(3 * i);
+    return theta_of_fit(core::fit(base_, options_));
   };
   theta0_ = theta_of(y0_);
-  // Central differences of the refit with respect to each dwell mean. A step of 1e-3 g keeps
-  // round-off near 1e-13 of the parameters for the linear fits.
+  use_operator_ = !closed_form_ || draws == 0 || draws >= 3 * n + 1;
+  if (!use_operator_) return;
+  // Differences of the refit with respect to each dwell mean: forward for the closed-form fits
+  // (linear: exact), central for the linearized Ceres fit. A step of 1e-3 g keeps round-off near
+  // 1e-13 of the parameters for the linear fits.
   const double h = 1e-3 * fit.local_gravity;
   L_.resize(12, static_cast<Eigen::Index>(3 * n));
   Eigen::VectorXd y = y0_;
   for (Eigen::Index j = 0; j < y.size(); ++j) {
     y(j) = y0_(j) + h;
     const Vector12d plus = theta_of(y);
-    y(j) = y0_(j) - h;
-    const Vector12d minus = theta_of(y);
+    if (closed_form_) {
+      L_.col(j) = (plus - theta0_) / h;
+    } else {
+      y(j) = y0_(j) - h;
+      L_.col(j) = (plus - theta_of(y)) / (2.0 * h);
+    }
     y(j) = y0_(j);
-    L_.col(j) = (plus - minus) / (2.0 * h);
   }
 }
 
@@ -254,7 +264,11 @@ Eigen::VectorXd BudgetRefit::simulate(const RigErrors& e) const {
 }
 
 Vector12d BudgetRefit::refit(const Eigen::VectorXd& outputs) const {
-  return theta0_ + L_ * (outputs - y0_);
+  if (use_operator_) return theta0_ + L_ * (outputs - y0_);
+  PositionTable drawn = base_;
+  for (std::size_t i = 0; i < drawn.rows.size(); ++i)
+    drawn.rows[i].mean = outputs.segment<3>(static_cast<Eigen::Index>(3 * i));
+  return theta_of_fit(core::fit(drawn, options_));
 }
 
 IntrinsicValues BudgetRefit::parameters(const RigErrors& errors) const {
@@ -264,7 +278,11 @@ IntrinsicValues BudgetRefit::parameters(const RigErrors& errors) const {
 UncertaintyBudget uncertainty_budget(const PositionTable& table, const FitResult& fit,
                                      const BudgetSpec& spec) {
   validate(spec);
-  const BudgetRefit refit(table, fit);
+  std::size_t draws = 0;
+  for (int source = 0; source < kNumSources; ++source)
+    if (source != kGravity && source_input(spec, source) > 0.0)
+      draws += static_cast<std::size_t>(spec.samples);
+  const BudgetRefit refit(table, fit, draws + 2);
   UncertaintyBudget budget = start_budget(refit, spec, "monte_carlo");
   const Eigen::Matrix<double, 9, 1> nominal = as_vector(refit.parameters(RigErrors{}));
   for (int source = 0; source < kNumSources; ++source) {

@@ -278,6 +278,12 @@ TEST(UncertaintyBudget, RefitOfADrawEqualsCoreFitOfThatSimulatedTable) {
     const Eigen::Matrix<double, 12, 1> theta = refit.refit(y);
     for (int k = 0; k < 9; ++k) EXPECT_NEAR(theta(k), direct.S(k / 3, k % 3), 1e-10) << k;
     for (int s = 0; s < 3; ++s) EXPECT_NEAR(theta(9 + s), direct.O(s), 1e-10) << s;
+    // Few draws: core::fit per draw instead of the operator; the same numbers.
+    const BudgetRefit per_draw(table, fit, 1);
+    ASSERT_FALSE(per_draw.uses_operator());
+    ASSERT_TRUE(refit.uses_operator());
+    const Eigen::Matrix<double, 12, 1> again = per_draw.refit(y);
+    for (int k = 0; k < 12; ++k) EXPECT_NEAR(again(k), theta(k), 1e-10) << k;
   }
 }
 

@@ -11,14 +11,16 @@
 //   theta = theta_0 + L (y_draw - y_0),  theta = (S row-major, O),
 // with y_0 the noise-free outputs of the fitted device at the run's positions, theta_0 its refit
 // and L (12 x 3N) the derivative of core::fit() with respect to the dwell means, taken column by
-// column from core::fit() itself (central differences; exact for the linear fits up to round-off,
+// column from core::fit() itself (differences; exact for the linear fits up to round-off,
 // so the budget refits with exactly the code that made the certificate). For a joint fit with
 // effect terms (Ceres), the same L is the fit's linearization at the fitted device: a
 // Gauss-Newton step, accurate for errors small enough that the estimate stays linear in them.
 // The simulation of each draw is NOT linearized: outputs come from model.h (predict_outputs) at
 // the perturbed angles, tilts and mountings, and the intrinsics from intrinsics_from_vectors, so
 // second-order effects (cos tau of an axis tilt, the arccos of the angles) appear in the scatter.
-// Cost: 2 (3N) + 1 fits to build L once, then O(N) per draw.
+// Cost: 3N + 1 fits (2 (3N) + 1 with effect terms) to build L once, then O(N) per draw. When the budget needs fewer draws in
+// all than L needs fits (large N), a closed-form model is instead refitted with core::fit for every
+// draw (also exact, also O(N) per draw), so the cost stays linear in draws and in N.
 //
 // Sources (all standard uncertainties, default 0, a source of 0 is left out of the budget):
 //   gravity_std_rel            relative error of the local gravity g the run assumed. g scales
@@ -107,8 +109,9 @@ struct RigErrors {
 // The fitted device, simulated at the run's positions and refitted (see the file comment).
 class BudgetRefit {
  public:
-  // Throws FitError when the run's model cannot be refitted (the fit's own errors).
-  BudgetRefit(const PositionTable& table, const FitResult& fit);
+  // Throws FitError when the run's model cannot be refitted (the fit's own errors). `draws`: how
+  // many refits the caller will ask for (chooses between L and direct refits, see above; 0: L).
+  BudgetRefit(const PositionTable& table, const FitResult& fit, std::size_t draws = 0);
 
   // Noise-free outputs of the fitted device under `errors`, one 3-vector per table row, stacked
   // (u, v, w of row 0, then row 1, ...).
@@ -121,6 +124,7 @@ class BudgetRefit {
   std::size_t rows() const { return geoms_.size(); }
   const std::vector<DwellGeometry>& geometries() const { return geoms_; }
   bool closed_form() const { return closed_form_; }
+  bool uses_operator() const { return use_operator_; }
   const FitResult& fit() const { return fit_; }
 
  private:
@@ -128,8 +132,11 @@ class BudgetRefit {
   std::vector<DwellGeometry> geoms_;
   Eigen::VectorXd y0_;
   Eigen::Matrix<double, 12, 1> theta0_;
-  Eigen::MatrixXd L_;  // 12 x 3N
+  Eigen::MatrixXd L_;  // 12 x 3N (when use_operator_)
   bool closed_form_ = true;
+  bool use_operator_ = true;
+  PositionTable base_;  // the run's table (rows, std, n, times): means replaced per refit
+  FitOptions options_;
 };
 
 // |u|, |v|, |w|, the angles and O of a parameter vector theta = (S row-major, O).
