@@ -10,6 +10,7 @@ PACKAGES=(
   libdiagnostic-updater-dev libeigen3-dev libceres-dev libyaml-cpp-dev libboost-math-dev
   nlohmann-json3-dev libcli11-dev libbenchmark-dev libgtest-dev googletest
   python3-rospy python3-rosgraph python3-matplotlib python3-numpy python3-yaml catkin-lint graphviz
+  poppler-utils
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -10,8 +10,6 @@
 #include <sstream>
 #include <vector>
 
-#include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include "accel_intrinsics/core/calibrate.h"
@@ -19,9 +17,11 @@
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/budget_file.h"
+#include "accel_intrinsics/io/residuals_csv.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/io/text_report.h"
 #include "accel_intrinsics/ros/bag_input.h"
+#include "accel_intrinsics/ros/scripts.h"
 
 namespace accel_intrinsics {
 namespace {
@@ -217,27 +217,24 @@ void check_command_line(const OfflineFitArguments& args) {
   }
 }
 
-// Runs /usr/bin/python3 certificate_report --out PDF JSON on the result (a temporary copy); the
-// script writes the PDF atomically and prints one line on failure.
-void write_certificate(const std::string& json, const std::string& pdf) {
-  const std::string script = certificate_script_path();
+// The certificate from the result: scripts/certificate_report --out PDF JSON on a temporary copy
+// of the JSON; the script writes the PDF atomically and prints one line on failure.
+void write_certificate(const std::string& json, const core::PositionTable& table,
+                       const core::FitResult& certificate, const std::string& pdf,
+                       const std::string& result_name) {
   const std::string tmp = pdf + ".json.tmp." + std::to_string(::getpid());
+  const std::string residuals = pdf + ".residuals.tmp." + std::to_string(::getpid());
   io::write_file_atomically(tmp, json);
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const char* argv[] = {"/usr/bin/python3", script.c_str(), "--out", pdf.c_str(), tmp.c_str(),
-                          nullptr};
-    ::execv(argv[0], const_cast<char* const*>(argv));
-    ::_exit(127);
-  }
-  int status = 0;
-  const bool ran = pid > 0 && ::waitpid(pid, &status, 0) == pid;
+  io::write_residuals_csv(residuals, table, certificate, certificate);
+  const int status =
+      run_package_script("certificate_report", {"--out", pdf, "--residuals", residuals,
+                                                "--result-name", result_name, tmp});
   std::remove(tmp.c_str());
-  if (!ran || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-    throw Failure{kOfflineFitBadInput,
-                  "--report: the certificate script " + script + " failed (exit status " +
-                      std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) +
-                      "); needs /usr/bin/python3 with matplotlib"};
+  std::remove(residuals.c_str());
+  if (status != 0) {
+    throw Failure{kOfflineFitBadInput, "--report: " + package_script("certificate_report") +
+                                           " failed (exit status " + std::to_string(status) +
+                                           "); it needs /usr/bin/python3 with matplotlib"};
   }
 }
 
@@ -297,7 +294,10 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   }
   if (csv_file) csv_file->commit();
   if (json_file) json_file->commit();
-  if (!args.report_pdf.empty()) write_certificate(json, args.report_pdf);
+  if (!args.report_pdf.empty())
+    write_certificate(json, input.table, report.certificate, args.report_pdf,
+                      args.json_out.empty() || json_to_stdout ? "(not saved: offline_fit --json)"
+                                                              : args.json_out);
 
   io::write_text_report(json_to_stdout ? err : out, report, input.context);
   if (json_to_stdout) out << json << std::flush;
@@ -309,24 +309,6 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
 }
 
 }  // namespace
-
-std::string certificate_script_path() {
-  const std::string name = "certificate_report";
-  auto exists = [](const std::string& path) {
-    struct stat info;
-    return ::stat(path.c_str(), &info) == 0;
-  };
-  if (const char* dir = std::getenv("ACCEL_INTRINSICS_SCRIPTS")) return std::string(dir) + "/" + name;
-  char self[4096];
-  const ssize_t n = ::readlink("/proc/self/exe", self, sizeof(self) - 1);
-  if (n > 0) {
-    self[n] = '\0';
-    std::string dir(self);
-    dir = dir.substr(0, dir.rfind('/'));
-    if (exists(dir + "/" + name)) return dir + "/" + name;
-  }
-  return std::string(ACCEL_INTRINSICS_SOURCE_DIR) + "/scripts/" + name;
-}
 
 std::string as_one_line(std::string text) {
   for (char& c : text) {

@@ -67,10 +67,6 @@ struct OfflineFitArguments {
 // appear only on success, each atomically (io/atomic_file.h).
 int run_offline_fit(const OfflineFitArguments& args, std::ostream& out, std::ostream& err);
 
-// The certificate script (scripts/certificate_report): $ACCEL_INTRINSICS_SCRIPTS/, else next to
-// the running executable (installed), else the package source's scripts/ (devel space).
-std::string certificate_script_path();
-
 // `text` with line breaks replaced by spaces (one-line error messages).
 std::string as_one_line(std::string text);
 
