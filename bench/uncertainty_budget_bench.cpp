@@ -73,8 +73,12 @@ void budget(benchmark::State& state, bool eq4) {
   state.counters["draws_total"] = 5.0 * draws;
 }
 
-void BM_Budget(benchmark::State& state) { budget(state, false); }
-void BM_BudgetEq4(benchmark::State& state) { budget(state, true); }
+void BM_Budget(benchmark::State& state) {
+  budget(state, false);
+}
+void BM_BudgetEq4(benchmark::State& state) {
+  budget(state, true);
+}
 
 BENCHMARK(BM_Budget)
     ->ArgsProduct({{24}, {250, 500, 1000, 2000, 4000}})

@@ -43,7 +43,8 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
 CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
                             const CalibrateOptions& options) {
   CalibrationReport report = fit_and_analyze(table, raw, options);
-  if (options.budget) report.budget = uncertainty_budget(table, report.certificate, *options.budget);
+  if (options.budget)
+    report.budget = uncertainty_budget(table, report.certificate, *options.budget);
   return report;
 }
 

@@ -62,8 +62,7 @@ Comparison compare(const std::vector<ComparedResult>& results) {
       pc.expanded.push_back(r.expanded[p]);
     }
     if (n == 2) {
-      pc.E_n.push_back((pc.values[0] - pc.values[1]) /
-                       std::hypot(pc.expanded[0], pc.expanded[1]));
+      pc.E_n.push_back((pc.values[0] - pc.values[1]) / std::hypot(pc.expanded[0], pc.expanded[1]));
     } else {
       double sum_w = 0.0, sum_wx = 0.0;
       for (std::size_t i = 0; i < n; ++i) {

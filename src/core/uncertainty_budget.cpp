@@ -15,9 +15,9 @@
 namespace accel_intrinsics {
 namespace core {
 
-const char* const kBudgetSourceNames[6] = {
-    "gravity_std_rel", "angle_random_std_deg", "angle_offset_std_deg",
-    "angle_scale_std", "axis_tilt_std_deg",    "mount_misalignment_std_deg"};
+const char* const kBudgetSourceNames[6] = {"gravity_std_rel",      "angle_random_std_deg",
+                                           "angle_offset_std_deg", "angle_scale_std",
+                                           "axis_tilt_std_deg",    "mount_misalignment_std_deg"};
 
 namespace {
 
@@ -121,7 +121,7 @@ UncertaintyBudget start_budget(const BudgetRefit& refit, const BudgetSpec& spec,
   UncertaintyBudget budget;
   budget.spec = spec;
   budget.method = std::string(method) + "; refit: " + refit.fit().model_label() +
-                  (!refit.closed_form() ? " (linearized at the fitted device)"
+                  (!refit.closed_form()    ? " (linearized at the fitted device)"
                    : refit.uses_operator() ? " (closed form, linear in the dwell means)"
                                            : " (closed form, core::fit per draw)");
   BudgetSource a;
@@ -140,8 +140,8 @@ BudgetSource gravity_source(const BudgetRefit& refit, const BudgetSpec& spec) {
   RigErrors up, down;
   up.gravity_rel = spec.gravity_std_rel;
   down.gravity_rel = -spec.gravity_std_rel;
-  s.std = from_vector(0.5 * (as_vector(refit.parameters(up)) - as_vector(refit.parameters(down)))
-                                .cwiseAbs());
+  s.std = from_vector(
+      0.5 * (as_vector(refit.parameters(up)) - as_vector(refit.parameters(down))).cwiseAbs());
   return s;
 }
 
@@ -150,9 +150,9 @@ BudgetSource gravity_source(const BudgetRefit& refit, const BudgetSpec& spec) {
 void validate(const BudgetSpec& spec) {
   auto check = [](const char* key, double value, double max, const char* unit) {
     if (!std::isfinite(value) || value < 0.0 || value > max)
-      throw std::invalid_argument(std::string("uncertainty budget: ") + key + " is " +
-                                  number_text(value) + "; it must be a standard uncertainty in [0, " +
-                                  number_text(max) + "]" + unit);
+      throw std::invalid_argument(
+          std::string("uncertainty budget: ") + key + " is " + number_text(value) +
+          "; it must be a standard uncertainty in [0, " + number_text(max) + "]" + unit);
   };
   check("gravity_std_rel", spec.gravity_std_rel, 0.01, " (relative)");
   check("angle_random_std_deg", spec.angle_random_std_deg, 10.0, " deg");
@@ -245,9 +245,8 @@ Eigen::VectorXd BudgetRefit::simulate(const RigErrors& e) const {
   for (int p = 0; p < 3; ++p) {
     const Eigen::Vector3d r = e.mount_rotation.col(p);
     const double angle = r.norm();
-    const Eigen::Matrix3d R =
-        angle > 0.0 ? Eigen::AngleAxisd(angle, r / angle).toRotationMatrix()
-                    : Eigen::Matrix3d::Identity();
+    const Eigen::Matrix3d R = angle > 0.0 ? Eigen::AngleAxisd(angle, r / angle).toRotationMatrix()
+                                          : Eigen::Matrix3d::Identity();
     S_phase[p] = fit_.S * R.transpose();
   }
   const double g = fit_.local_gravity * (1.0 + e.gravity_rel);

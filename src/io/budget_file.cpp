@@ -128,8 +128,8 @@ nlohmann::json budget_json(const core::UncertaintyBudget& b) {
   block(b.combined, "responsivity", "angles_deg", "offset", &combined);
   nlohmann::json expanded = {{"k", b.coverage_factor}};
   block(b.expanded, "responsivity", "angles_deg", "offset", &expanded);
-  return {{"sources", sources},   {"combined_std", combined}, {"expanded", expanded},
-          {"samples", b.spec.samples}, {"seed", b.spec.seed}, {"method", b.method}};
+  return {{"sources", sources},        {"combined_std", combined}, {"expanded", expanded},
+          {"samples", b.spec.samples}, {"seed", b.spec.seed},      {"method", b.method}};
 }
 
 }  // namespace detail

@@ -1,8 +1,7 @@
 #include "accel_intrinsics/io/comparison_document.h"
 
-#include <nlohmann/json.hpp>
-
 #include <cmath>
+#include <nlohmann/json.hpp>
 
 #include "accel_intrinsics/core/constants.h"
 
@@ -39,8 +38,9 @@ core::ComparedResult compared_result(const StoredResult& stored, const std::stri
   }
   if (!stored.expanded)
     throw core::ComparisonError(
-        name + " has no uncertainty_budget (make it with offline_fit --budget FILE, or pass "
-               "--type-a-only to compare with U = 2 x the type-A uncertainties)");
+        name +
+        " has no uncertainty_budget (make it with offline_fit --budget FILE, or pass "
+        "--type-a-only to compare with U = 2 x the type-A uncertainties)");
   r.coverage_factor = stored.coverage_factor;
   for (int i = 0; i < 3; ++i) {
     r.expanded[i] = stored.expanded->responsivity(i);
@@ -53,8 +53,8 @@ core::ComparedResult compared_result(const StoredResult& stored, const std::stri
 std::string comparison_json_text(const core::Comparison& c, bool type_a_only) {
   nlohmann::json parameters = nlohmann::json::object();
   for (const core::ParameterComparison& p : c.parameters) {
-    nlohmann::json j = {{"values", numbers(p.values)}, {"U", numbers(p.expanded)},
-                        {"E_n", numbers(p.E_n)}};
+    nlohmann::json j = {
+        {"values", numbers(p.values)}, {"U", numbers(p.expanded)}, {"E_n", numbers(p.E_n)}};
     if (c.results.size() >= 3) {
       j["reference_value"] = p.reference;
       j["reference_U"] = p.reference_expanded;
@@ -63,12 +63,10 @@ std::string comparison_json_text(const core::Comparison& c, bool type_a_only) {
     }
     parameters[p.name] = j;
   }
-  const nlohmann::json doc = {{"results", c.results},
-                              {"local_gravity", c.local_gravity},
-                              {"k", c.coverage_factor},
-                              {"uncertainty", type_a_only ? "type_a_only" : "budget"},
-                              {"parameters", parameters},
-                              {"consistent", c.consistent}};
+  const nlohmann::json doc = {
+      {"results", c.results},     {"local_gravity", c.local_gravity},
+      {"k", c.coverage_factor},   {"uncertainty", type_a_only ? "type_a_only" : "budget"},
+      {"parameters", parameters}, {"consistent", c.consistent}};
   return doc.dump(2) + "\n";
 }
 

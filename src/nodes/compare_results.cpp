@@ -1,16 +1,18 @@
 // compare_results: the command line of the comparison tool (include/accel_intrinsics/ros/
 // compare_results.h).
+#include "accel_intrinsics/ros/compare_results.h"
+
 #include <CLI/CLI.hpp>
 #include <iostream>
 
-#include "accel_intrinsics/ros/compare_results.h"
 #include "accel_intrinsics/ros/offline_fit.h"
 
 namespace ai = accel_intrinsics;
 
 int main(int argc, char** argv) {
-  CLI::App app{"Compares calibration results of one accelerometer (E_n; reference value and degrees "
-               "of equivalence for three or more) with their expanded uncertainties."};
+  CLI::App app{
+      "Compares calibration results of one accelerometer (E_n; reference value and degrees "
+      "of equivalence for three or more) with their expanded uncertainties."};
   app.footer("Exit status: 0 consistent (every |E_n| <= 1); 1 not consistent; 2 bad input.");
   ai::CompareResultsArguments args;
   app.add_option("results", args.files, "result files (offline_fit --json, node YAML)")->required();

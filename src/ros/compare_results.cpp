@@ -37,7 +37,8 @@ void print_table(const core::Comparison& c, std::ostream& out) {
       out << "  ref " << std::setprecision(8) << p.reference << " +- " << std::setprecision(2)
           << p.reference_expanded;
     out << "  E_n";
-    for (double e : p.E_n) out << " " << std::fixed << std::setprecision(2) << e << std::defaultfloat;
+    for (double e : p.E_n)
+      out << " " << std::fixed << std::setprecision(2) << e << std::defaultfloat;
     bool ok = true;
     for (double e : p.E_n) ok = ok && std::abs(e) <= 1.0;
     out << (ok ? "" : "  <-- |E_n| > 1") << "\n";

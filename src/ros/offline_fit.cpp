@@ -1,16 +1,16 @@
 #include "accel_intrinsics/ros/offline_fit.h"
 
+#include <unistd.h>
+
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cmath>
 #include <iomanip>
 #include <memory>
 #include <ostream>
 #include <sstream>
 #include <vector>
-
-#include <unistd.h>
 
 #include "accel_intrinsics/core/calibrate.h"
 #include "accel_intrinsics/core/fit.h"
@@ -226,9 +226,9 @@ void write_certificate(const std::string& json, const core::PositionTable& table
   const std::string residuals = pdf + ".residuals.tmp." + std::to_string(::getpid());
   io::write_file_atomically(tmp, json);
   io::write_residuals_csv(residuals, table, certificate, certificate);
-  const int status =
-      run_package_script("certificate_report", {"--out", pdf, "--residuals", residuals,
-                                                "--result-name", result_name, tmp});
+  const int status = run_package_script(
+      "certificate_report",
+      {"--out", pdf, "--residuals", residuals, "--result-name", result_name, tmp});
   std::remove(tmp.c_str());
   std::remove(residuals.c_str());
   if (status != 0) {
@@ -260,9 +260,9 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
 
   Input input = args.bag.empty() ? read_csv_input(args) : read_bag_input(args, err);
   input.context.certificate = budget_file.certificate;
-  input.context.gravity_source =
-      args.gravity_given ? "offline_fit --gravity"
-                         : "standard gravity (offline_fit default; no --gravity given)";
+  input.context.gravity_source = args.gravity_given
+                                     ? "offline_fit --gravity"
+                                     : "standard gravity (offline_fit default; no --gravity given)";
   check_phases(input.table, options.fit.min_positions_per_phase);
 
   core::CalibrationReport report;

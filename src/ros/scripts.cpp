@@ -13,7 +13,8 @@ std::string package_script(const std::string& name) {
     struct stat info;
     return ::stat(path.c_str(), &info) == 0;
   };
-  if (const char* dir = std::getenv("ACCEL_INTRINSICS_SCRIPTS")) return std::string(dir) + "/" + name;
+  if (const char* dir = std::getenv("ACCEL_INTRINSICS_SCRIPTS"))
+    return std::string(dir) + "/" + name;
   char self[4096];
   const ssize_t n = ::readlink("/proc/self/exe", self, sizeof(self) - 1);
   if (n > 0) {

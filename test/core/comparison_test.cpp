@@ -7,9 +7,9 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdlib>
 #include <iostream>
 #include <random>
-#include <cstdlib>
 
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/core/fit.h"

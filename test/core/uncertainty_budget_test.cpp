@@ -130,10 +130,8 @@ TEST(UncertaintyBudget, RandomAngleErrorsMatchLinearPropagationOfTheTestsOwnJaco
       std::vector<double> up(rows, 0.0), down(rows, 0.0);
       up[k] = h;
       down[k] = -h;
-      const FitResult fu =
-          core::fit(hand_table(fit.S, fit.O, steps, fit.local_gravity, up), fo);
-      const FitResult fd =
-          core::fit(hand_table(fit.S, fit.O, steps, fit.local_gravity, down), fo);
+      const FitResult fu = core::fit(hand_table(fit.S, fit.O, steps, fit.local_gravity, up), fo);
+      const FitResult fd = core::fit(hand_table(fit.S, fit.O, steps, fit.local_gravity, down), fo);
       const Eigen::Matrix<double, 9, 1> d = (intrinsic_vector(fu) - intrinsic_vector(fd)) / (2 * h);
       var += (sigma * d).cwiseAbs2();
     }
@@ -148,12 +146,10 @@ TEST(UncertaintyBudget, RandomAngleErrorsMatchLinearPropagationOfTheTestsOwnJaco
     const Eigen::Matrix<double, 9, 1> mc = std_vector(source(b, "angle_random_std_deg").std);
     for (int i = 0; i < 9; ++i) {
       EXPECT_NEAR(mc(i) / linear(i), 1.0, 0.10)
-          << model_name(model) << " parameter " << i << ": MC " << mc(i) << " linear "
-          << linear(i);
+          << model_name(model) << " parameter " << i << ": MC " << mc(i) << " linear " << linear(i);
     }
     // The budget's own linear propagation agrees with the test's Jacobian.
-    const UncertaintyBudget lin =
-        linear_propagation_budget(equal, core::fit(equal, fo), spec);
+    const UncertaintyBudget lin = linear_propagation_budget(equal, core::fit(equal, fo), spec);
     const Eigen::Matrix<double, 9, 1> own = std_vector(source(lin, "angle_random_std_deg").std);
     for (int i = 0; i < 9; ++i) EXPECT_NEAR(own(i), linear(i), 1e-4 * linear(i)) << i;
   }
@@ -173,9 +169,9 @@ TEST(UncertaintyBudget, RandomAngleErrorsMatchLinearPropagationOfTheTestsOwnJaco
 //   v_hat = a_v (-sin d_z / 2, (cos d_x + cos d_z)/2, sin d_x / 2)
 //   w_hat = a_w (-sin d_y / 2, -sin d_x / 2, (cos d_x + cos d_y)/2)
 // so |u_hat| = a_u sqrt((1 + cos d_y cos d_z) / 2) = a_u (1 - (d_y^2 + d_z^2)/8 + ...): only second
-// order. With d ~ N(0, s^2), var(d^2) = 2 s^4, so std |u_hat| / a_u = sqrt(2 * 2 s^4) / 8 = s^2 / 4.
-// u_hat . v_hat / (a_u a_v) = [sin d_z (cos d_x - cos d_y) + sin d_x sin d_y] / 4 ~ d_x d_y / 4,
-// so theta_uv = 90 deg - d_x d_y / 4 and std theta = s^2 / 4 (std of a product of two
+// order. With d ~ N(0, s^2), var(d^2) = 2 s^4, so std |u_hat| / a_u = sqrt(2 * 2 s^4) / 8 = s^2
+// / 4. u_hat . v_hat / (a_u a_v) = [sin d_z (cos d_x - cos d_y) + sin d_x sin d_y] / 4 ~ d_x d_y /
+// 4, so theta_uv = 90 deg - d_x d_y / 4 and std theta = s^2 / 4 (std of a product of two
 // independent N(0, s^2) is s^2). Offsets: the mean of sin(alpha + d) over the circle is 0: none.
 // Linear propagation gives zero for all nine: the Monte Carlo sees what it cannot.
 //

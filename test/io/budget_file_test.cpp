@@ -102,8 +102,9 @@ void expect_triple(const nlohmann::json& j, const std::vector<std::string>& keys
                    const Eigen::Vector3d& values, double scale) {
   ASSERT_TRUE(j.is_object());
   EXPECT_EQ(j.size(), 3u);
-  for (int i = 0; i < 3; ++i) EXPECT_NEAR(j.at(keys[i]).get<double>(), scale * values(i),
-                                          1e-12 * std::abs(scale * values(i)) + 1e-300);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(j.at(keys[i]).get<double>(), scale * values(i),
+                1e-12 * std::abs(scale * values(i)) + 1e-300);
 }
 
 TEST(BudgetFile, ResultHasTheDesignStructureInJsonAndYamlAndReadsBack) {
@@ -128,10 +129,12 @@ TEST(BudgetFile, ResultHasTheDesignStructureInJsonAndYamlAndReadsBack) {
   }
   expect_triple(b.at("combined_std").at("responsivity"), acc, report.budget->combined.responsivity,
                 1.0);
-  expect_triple(b.at("combined_std").at("angles_deg"), ang, report.budget->combined.angles_rad, deg);
+  expect_triple(b.at("combined_std").at("angles_deg"), ang, report.budget->combined.angles_rad,
+                deg);
   expect_triple(b.at("combined_std").at("offset"), acc, report.budget->combined.offset, 1.0);
   EXPECT_EQ(b.at("expanded").at("k"), 2.0);
-  expect_triple(b.at("expanded").at("responsivity"), acc, report.budget->expanded.responsivity, 1.0);
+  expect_triple(b.at("expanded").at("responsivity"), acc, report.budget->expanded.responsivity,
+                1.0);
   expect_triple(b.at("expanded").at("angles_deg"), ang, report.budget->expanded.angles_rad, deg);
   expect_triple(b.at("expanded").at("offset"), acc, report.budget->expanded.offset, 1.0);
   // Type A in the budget is the result's own std.

@@ -102,7 +102,9 @@ int shell(const std::string& command) {
 }
 
 // Decimal places of U rounded to two significant digits (GUM 7.2.6).
-int decimals_for(double U) { return 1 - static_cast<int>(std::floor(std::log10(U))); }
+int decimals_for(double U) {
+  return 1 - static_cast<int>(std::floor(std::log10(U)));
+}
 
 TEST(OfflineFitBudget, JsonCarriesTheBudgetOfTheShippedFileAndItsCertificateBlock) {
   TempDir dir;
@@ -159,12 +161,12 @@ TEST(Certificate, PdfTextStatesTheJsonNumbersRoundedToTheirUncertainty) {
     std::string name, value_key, budget_key, sub;
   };
   std::vector<Row> rows;
-  for (const char* s : {"u", "v", "w"}) rows.push_back({std::string("responsivity_") + s,
-                                                        "responsivity", "responsivity", s});
-  for (const char* a : {"uv", "vw", "wu"}) rows.push_back({std::string("angle_") + a,
-                                                           "angles_deg", "angles_deg", a});
-  for (const char* s : {"u", "v", "w"}) rows.push_back({std::string("offset_") + s, "offset",
-                                                        "offset", s});
+  for (const char* s : {"u", "v", "w"})
+    rows.push_back({std::string("responsivity_") + s, "responsivity", "responsivity", s});
+  for (const char* a : {"uv", "vw", "wu"})
+    rows.push_back({std::string("angle_") + a, "angles_deg", "angles_deg", a});
+  for (const char* s : {"u", "v", "w"})
+    rows.push_back({std::string("offset_") + s, "offset", "offset", s});
   for (const Row& r : rows) {
     const std::regex line(r.name + R"(\s+(-?[0-9.]+)\s+±\s+([0-9.]+))");
     std::smatch m;
@@ -210,7 +212,8 @@ TEST(Certificate, StandaloneScriptOnASavedResultWithoutBudgetSaysTypeAOnly) {
   // U = 2 x type A for responsivity_u, two significant digits.
   const double U = 2.0 * j.at("responsivity_std").at("u").get<double>();
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(text, m, std::regex(R"(responsivity_u\s+([0-9.]+)\s+±\s+([0-9.]+))")));
+  ASSERT_TRUE(
+      std::regex_search(text, m, std::regex(R"(responsivity_u\s+([0-9.]+)\s+±\s+([0-9.]+))")));
   EXPECT_LE(std::abs(std::stod(m[2]) - U), 0.5 * std::pow(10.0, -decimals_for(U)) * (1 + 1e-9));
   // A missing result: exit 1, one line.
   EXPECT_EQ(shell("/usr/bin/python3 " + std::string(ACCEL_SOURCE_DIR) +
@@ -236,9 +239,9 @@ TEST(CompareResults, RemountedDeviceIsConsistentChangedDeviceIsNot) {
   const core::Device d = device(4);
   offline(simulated_csv(dir, "a.csv", d, 40), dir.file("a.json"), true);
   core::Device other = d;  // the same triad in another mounting
-  other.S = d.S * Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized())
-                      .toRotationMatrix()
-                      .transpose();
+  other.S =
+      d.S *
+      Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix().transpose();
   offline(simulated_csv(dir, "b.csv", other, 41), dir.file("b.json"), true);
   std::string err;
   EXPECT_EQ(compare({dir.file("a.json"), dir.file("b.json")}, dir.file("ab.json"), false, &err,
@@ -291,8 +294,8 @@ TEST(CompareResults, RefusesDifferentGravityAndResultsWithoutUncertaintiesInOneL
   EXPECT_NE(err.find("c.json has no uncertainty_budget"), std::string::npos) << err;
   EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
   // With --type-a-only both are compared with U = 2 x type A.
-  const int status = compare({dir.file("a.json"), dir.file("c.json")}, dir.file("t.json"), true,
-                             &err);
+  const int status =
+      compare({dir.file("a.json"), dir.file("c.json")}, dir.file("t.json"), true, &err);
   EXPECT_TRUE(status == ai::kCompareConsistent || status == ai::kCompareInconsistent) << err;
   EXPECT_EQ(json::parse(read_text(dir.file("t.json"))).at("uncertainty"), "type_a_only");
   EXPECT_EQ(compare({dir.file("a.json")}, "", false, &err), ai::kCompareBadInput);

@@ -18,9 +18,10 @@
 // The simulation of each draw is NOT linearized: outputs come from model.h (predict_outputs) at
 // the perturbed angles, tilts and mountings, and the intrinsics from intrinsics_from_vectors, so
 // second-order effects (cos tau of an axis tilt, the arccos of the angles) appear in the scatter.
-// Cost: 3N + 1 fits (2 (3N) + 1 with effect terms) to build L once, then O(N) per draw. When the budget needs fewer draws in
-// all than L needs fits (large N), a closed-form model is instead refitted with core::fit for every
-// draw (also exact, also O(N) per draw), so the cost stays linear in draws and in N.
+// Cost: 3N + 1 fits (2 (3N) + 1 with effect terms) to build L once, then O(N) per draw. When the
+// budget needs fewer draws in all than L needs fits (large N), a closed-form model is instead
+// refitted with core::fit for every draw (also exact, also O(N) per draw), so the cost stays linear
+// in draws and in N.
 //
 // Sources (all standard uncertainties, default 0, a source of 0 is left out of the budget):
 //   gravity_std_rel            relative error of the local gravity g the run assumed. g scales
@@ -78,9 +79,9 @@ struct IntrinsicValues {
 extern const char* const kBudgetSourceNames[6];
 
 struct BudgetSource {
-  std::string name;      // "type_a", "gravity_std_rel", "angle_random_std_deg", ...
-  double input = 0.0;    // the budget file's value (NaN for type_a)
-  IntrinsicValues std;   // standard uncertainty contributed to each parameter
+  std::string name;            // "type_a", "gravity_std_rel", "angle_random_std_deg", ...
+  double input = 0.0;          // the budget file's value (NaN for type_a)
+  IntrinsicValues std;         // standard uncertainty contributed to each parameter
   IntrinsicValues mean_shift;  // mean of the draws minus the unperturbed refit (Monte Carlo
                                // sources; zero for type_a and gravity): a second-order bias the
                                // budget does not correct, reported so it can be seen
@@ -98,7 +99,7 @@ struct UncertaintyBudget {
 // An error state of the rig for one simulated run (all zero: the nominal rig).
 struct RigErrors {
   double gravity_rel = 0.0;
-  std::vector<double> row_angle_rad;                         // per table row (empty: none)
+  std::vector<double> row_angle_rad;                           // per table row (empty: none)
   Eigen::Vector3d angle_offset_rad = Eigen::Vector3d::Zero();  // per phase x, y, z
   Eigen::Vector3d angle_scale = Eigen::Vector3d::Zero();
   Eigen::Vector3d axis_tilt_rad = Eigen::Vector3d::Zero();
