@@ -53,10 +53,9 @@ PositionTable hand_table(const Eigen::Matrix3d& S, const Eigen::Vector3d& O, int
       r.t_end_s = r.t_start_s + 2.0;
       r.n = 200;
       const double a = r.angle_rad + (delta.empty() ? 0.0 : delta[static_cast<std::size_t>(k)]);
-      Eigen::Vector3d f;
+      Eigen::Vector3d f(std::sin(a), std::cos(a), 0.0);  // phase z
       if (p == Phase::X) f << 0.0, std::sin(a), std::cos(a);
       if (p == Phase::Y) f << std::sin(a), 0.0, std::cos(a);
-      if (p == Phase::Z) f << std::sin(a), std::cos(a), 0.0;
       r.mean = S * (g * f) + O;
       r.std = Eigen::Vector3d::Constant(0.01);
       t.rows.push_back(r);
