@@ -371,3 +371,42 @@ TEST(UncertaintyBudget, InvalidSpecIsRefusedNamingTheKey) {
 }  // namespace
 }  // namespace core
 }  // namespace accel_intrinsics
+
+namespace accel_intrinsics {
+namespace core {
+namespace {
+
+// A certificate with a fitted effect term (the analysis' refit): the refit is Ceres, linearized at
+// the fitted device. g still scales exactly (S (1 + d) and K2 (1 + d) reproduce the outputs at
+// g (1 + d)), and random angle errors give the same scatter as for the closed-form fit of the same
+// run within the Monte Carlo's sampling error (the extra term barely correlates with the angles).
+TEST(UncertaintyBudget, CertificateWithAFittedEffectIsRefittedLinearizedAtTheDevice) {
+  std::mt19937_64 rng(41);
+  Device truth = testing_devices::random_device(rng);
+  truth.effects = {make_effect("quadratic_nonlinearity", "u", 3e-4)};
+  const PositionTable table = simulated_table(truth, 8);
+  FitOptions with_effect;
+  with_effect.effects = {make_effect("quadratic_nonlinearity", "u", 0.0)};
+  const FitResult fit_effect = fit(table, with_effect);
+  const FitResult fit_plain = fit(table);
+  BudgetSpec spec;
+  spec.gravity_std_rel = 1e-4;
+  spec.angle_random_std_deg = 0.01;
+  const UncertaintyBudget b = uncertainty_budget(table, fit_effect, spec);
+  EXPECT_NE(b.method.find("linearized"), std::string::npos) << b.method;
+  const BudgetSource& g = source(b, "gravity_std_rel");
+  for (int s = 0; s < 3; ++s) {
+    const double r = fit_effect.intrinsics.responsivity(s);
+    EXPECT_NEAR(g.std.responsivity(s), 1e-4 * r, 1e-7 * r) << s;
+  }
+  const BudgetSource& a = source(b, "angle_random_std_deg");
+  const BudgetSource& p = source(uncertainty_budget(table, fit_plain, spec), "angle_random_std_deg");
+  for (int s = 0; s < 3; ++s) {
+    EXPECT_NEAR(a.std.angles_rad(s) / p.std.angles_rad(s), 1.0, 0.1) << s;
+    EXPECT_NEAR(a.std.responsivity(s) / p.std.responsivity(s), 1.0, 0.1) << s;
+  }
+}
+
+}  // namespace
+}  // namespace core
+}  // namespace accel_intrinsics
