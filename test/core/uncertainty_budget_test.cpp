@@ -400,7 +400,8 @@ TEST(UncertaintyBudget, CertificateWithAFittedEffectIsRefittedLinearizedAtTheDev
     EXPECT_NEAR(g.std.responsivity(s), 1e-4 * r, 1e-7 * r) << s;
   }
   const BudgetSource& a = source(b, "angle_random_std_deg");
-  const BudgetSource& p = source(uncertainty_budget(table, fit_plain, spec), "angle_random_std_deg");
+  const BudgetSource& p =
+      source(uncertainty_budget(table, fit_plain, spec), "angle_random_std_deg");
   for (int s = 0; s < 3; ++s) {
     EXPECT_NEAR(a.std.angles_rad(s) / p.std.angles_rad(s), 1.0, 0.1) << s;
     EXPECT_NEAR(a.std.responsivity(s) / p.std.responsivity(s), 1.0, 0.1) << s;

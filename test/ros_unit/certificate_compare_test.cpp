@@ -18,8 +18,10 @@
 #include <sstream>
 #include <string>
 
+#include "accel_intrinsics/core/calibrate.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/compare_results.h"
 #include "accel_intrinsics/ros/offline_fit.h"
 
@@ -299,6 +301,42 @@ TEST(CompareResults, RefusesDifferentGravityAndResultsWithoutUncertaintiesInOneL
   EXPECT_TRUE(status == ai::kCompareConsistent || status == ai::kCompareInconsistent) << err;
   EXPECT_EQ(json::parse(read_text(dir.file("t.json"))).at("uncertainty"), "type_a_only");
   EXPECT_EQ(compare({dir.file("a.json")}, "", false, &err), ai::kCompareBadInput);
+}
+
+}  // namespace
+
+namespace {
+
+TEST(Certificate, StandaloneScriptReadsTheNodesYamlToo) {
+  TempDir dir;
+  core::SimulationOptions sim;
+  sim.truth = device(7);
+  sim.seed = 7;
+  const core::PositionTable table = core::simulate_position_table(sim);
+  core::CalibrateOptions options;
+  core::BudgetSpec spec;
+  spec.angle_random_std_deg = 0.01;
+  spec.samples = 200;
+  options.budget = spec;
+  const core::CalibrationReport report = core::calibrate(table, nullptr, options);
+  ai::io::ResultContext context;
+  context.certificate = {{"lab", "YAML Lab"}};
+  std::ofstream(dir.file("intrinsics.yaml")) << ai::io::result_yaml_text(report, context);
+  const std::string pdf = dir.file("y.pdf");
+  ASSERT_EQ(shell("/usr/bin/python3 " + std::string(ACCEL_SOURCE_DIR) +
+                  "/scripts/certificate_report --out " + pdf + " " + dir.file("intrinsics.yaml")),
+            0);
+  ASSERT_EQ(shell("pdftotext -layout " + pdf + " " + dir.file("y.txt")), 0);
+  const std::string text = read_text(dir.file("y.txt"));
+  EXPECT_NE(text.find("YAML Lab"), std::string::npos);
+  EXPECT_NE(text.find("angle_random_std_deg"), std::string::npos);
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(text, m, std::regex(R"(angle_vw\s+([0-9.]+)\s+±\s+([0-9.]+))")));
+  const double x = report.certificate.intrinsics.angles_rad(1) * 180.0 / M_PI;
+  const double U = report.budget->expanded.angles_rad(1) * 180.0 / M_PI;
+  const double step = std::pow(10.0, -decimals_for(U));
+  EXPECT_LE(std::abs(std::stod(m[1]) - x), 0.5 * step * (1 + 1e-9));
+  EXPECT_LE(std::abs(std::stod(m[2]) - U), 0.5 * step * (1 + 1e-9));
 }
 
 }  // namespace
