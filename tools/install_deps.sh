@@ -11,6 +11,7 @@ PACKAGES=(
   nlohmann-json3-dev libcli11-dev libbenchmark-dev libgtest-dev googletest
   python3-rospy python3-rosgraph python3-matplotlib python3-numpy python3-yaml catkin-lint graphviz
   libnodeletlib-dev libnodeletlib-tools pluginlib-dev
+  poppler-utils
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

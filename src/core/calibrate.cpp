@@ -48,6 +48,8 @@ CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
   QualityOptions quality = options.quality;
   quality.outputs_in_si = quality.outputs_in_si && report.output_unit == "m/s^2";
   report.quality = assess_quality(report.certificate, table, quality);
+  if (options.budget)
+    report.budget = uncertainty_budget(table, report.certificate, *options.budget);
   return report;
 }
 

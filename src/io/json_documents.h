@@ -20,6 +20,8 @@ nlohmann::json fit_json(const core::FitResult& fit);
 nlohmann::json analysis_json(const core::AnalysisResult& analysis);
 // "timing_lag" {...}, and appended to "effects" when detected.
 void add_timing_lag(const core::TimingLagEstimate& lag, nlohmann::json* analysis);
+// "uncertainty_budget" (budget_file.cpp, DESIGN.md section 9): angles in degrees.
+nlohmann::json budget_json(const core::UncertaintyBudget& budget);
 // The whole result document (result_document.h).
 nlohmann::json result_document(const core::CalibrationReport& report, const ResultContext& context);
 

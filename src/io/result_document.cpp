@@ -286,6 +286,13 @@ nlohmann::json result_document(const core::CalibrationReport& report,
     }
   }
   if (!report.analysis_error.empty()) j["analysis_error"] = report.analysis_error;
+  if (report.budget) j["uncertainty_budget"] = budget_json(*report.budget);
+  if (!context.certificate.empty()) {
+    nlohmann::json fields = nlohmann::json::object();
+    for (const auto& f : context.certificate) fields[f.first] = f.second;
+    j["certificate"] = fields;
+  }
+  if (!context.gravity_source.empty()) j["local_gravity_source"] = context.gravity_source;
   if (std::isfinite(context.stamp_s)) j["stamp"] = context.stamp_s;
   if (context.samples) j["samples"] = counters_json(*context.samples);
   if (context.input) {
@@ -361,6 +368,22 @@ StoredResult read_result_file(const std::string& path) {
     out.cross_sensitivity.row(i) = r.list3(rows[i], "cross_sensitivity").transpose();
   }
   out.local_gravity = r.scalar(r.child(root, "local_gravity", ""), "local_gravity");
+  if (root["offset_std"]) out.O_std = r.triple("offset_std", kAccelerometers);
+  if (const YAML::Node budget = root["uncertainty_budget"]) {
+    const YAML::Node e = r.child(budget, "expanded", "uncertainty_budget.");
+    core::IntrinsicValues x;
+    for (int i = 0; i < 3; ++i) {
+      const std::string w = "uncertainty_budget.expanded.";
+      x.responsivity(i) = r.scalar(
+          r.child(r.child(e, "responsivity", w), kAccelerometers[i], w + "responsivity."), w);
+      x.angles_rad(i) = core::deg_to_rad(
+          r.scalar(r.child(r.child(e, "angles_deg", w), kAngles[i], w + "angles_deg."), w));
+      x.offset(i) =
+          r.scalar(r.child(r.child(e, "offset", w), kAccelerometers[i], w + "offset."), w);
+    }
+    out.expanded = x;
+    out.coverage_factor = r.scalar(r.child(e, "k", "uncertainty_budget.expanded."), "k");
+  }
 
   if (root["noise_density"]) out.noise_density = r.triple("noise_density", kAccelerometers);
   if (root["sample_rate_hz"]) {

@@ -82,6 +82,27 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
   out.flush();
 }
 
+namespace {
+
+// The expanded uncertainties of the budget (the JSON has every source).
+void write_budget_report(std::ostream& out, const core::UncertaintyBudget& b) {
+  out << "\n  uncertainty budget: " << b.sources.size() << " sources (type A";
+  for (std::size_t i = 1; i < b.sources.size(); ++i) out << ", " << b.sources[i].name;
+  out << "), expanded with k = " << b.coverage_factor << "\n";
+  static const char* const kAngles[] = {"theta_uv", "theta_vw", "theta_wu"};
+  for (int s = 0; s < 3; ++s)
+    out << "    U |" << core::accelerometer_name(s) << "|      " << std::setprecision(2)
+        << b.expanded.responsivity(s) << "\n";
+  for (int i = 0; i < 3; ++i)
+    out << "    U " << kAngles[i] << "  " << std::setprecision(2)
+        << core::rad_to_deg(b.expanded.angles_rad(i)) << " deg\n";
+  for (int s = 0; s < 3; ++s)
+    out << "    U O_" << core::accelerometer_name(s) << "       " << std::setprecision(2)
+        << b.expanded.offset(s) << " m/s^2\n";
+}
+
+}  // namespace
+
 void write_text_report(std::ostream& out, const core::CalibrationReport& report,
                        const ResultContext& context) {
   write_fit_report(out, report.certificate, context);
@@ -91,6 +112,7 @@ void write_text_report(std::ostream& out, const core::CalibrationReport& report,
   }
   out << "  quality gate:  " << (report.quality.pass ? "passed" : "FAILED") << "\n";
   for (const std::string& reason : report.quality.reasons) out << "    - " << reason << "\n";
+  if (report.budget) write_budget_report(out, *report.budget);
   if (!report.analysis) return;
   out << "\n";
   write_analysis_report(out, *report.analysis);

@@ -38,7 +38,8 @@ int main(int argc, char** argv) {
   auto* command = app.add_option("--command-topic", args.command_topic,
                                  "gimbal command topic in the bag (accel_intrinsics/GimbalCommand)")
                       ->capture_default_str();
-  app.add_option("--gravity", args.gravity, "local gravity g in m/s^2")->capture_default_str();
+  auto* gravity = app.add_option("--gravity", args.gravity, "local gravity g in m/s^2")
+                      ->capture_default_str();
   app.add_option("--model", args.model, "fit model: joint or eq4")->capture_default_str();
   app.add_flag("--analyze", args.analyze, "also run the discrepancy analysis (missing effects)");
   app.add_option("--json", args.json_out, "write the result as JSON to this file ('-': stdout)");
@@ -65,6 +66,11 @@ int main(int argc, char** argv) {
                      ai::io::export_format_list())
       ->type_name("NAME=FILE")
       ->take_all();
+  app.add_option("--budget", args.budget,
+                 "uncertainty budget (YAML, config/uncertainty_budget.yaml): adds the type-B "
+                 "budget and expanded uncertainties (k = 2) to the result");
+  app.add_option("--report", args.report_pdf,
+                 "write a calibration certificate (PDF) from the result");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -80,6 +86,7 @@ int main(int argc, char** argv) {
   args.command_topic_given = command->count() > 0;
   args.settle_discard_given = settle->count() > 0;
   args.imu_time_offset_given = offset->count() > 0;
+  args.gravity_given = gravity->count() > 0;
 
   // rosbag and cpp_common log parse errors through console_bridge; the exception they throw
   // carries the same news and becomes our one line on stderr.

@@ -315,6 +315,8 @@ void CalibrationNode::publish_certificate(const core::CalibrationReport& report,
     io::ResultContext context;
     context.stamp_s = stamp.toSec();
     context.samples = counters;
+    context.certificate = options_.certificate;
+    context.gravity_source = options_.gravity_source;
     io::write_result_yaml(files_.result_path(), report, context);
     ROS_INFO("calibration: wrote %s", files_.result_path().c_str());
     write_exports(report);

@@ -4,6 +4,8 @@
 #include <stdexcept>
 
 #include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/io/atomic_file.h"
+#include "accel_intrinsics/io/budget_file.h"
 #include "accel_intrinsics/ros/calibration_node.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/exporters.h"
@@ -41,6 +43,19 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
       "must be in (9.7, 9.9) m/s^2 (got " + std::to_string(o.calibrate.fit.local_gravity) + ")");
   read_param(pnh, "output_unit", &o.calibrate.output_unit);
   require(!o.calibrate.output_unit.empty(), pnh, "output_unit", "must not be empty (m/s^2)");
+  o.gravity_source = have_lat ? "normal gravity at parameters latitude_deg, height_m"
+                     : have_g ? "parameter local_gravity"
+                              : "standard gravity (default; no local_gravity given)";
+  std::string budget_file;
+  if (read_param(pnh, "budget_file", &budget_file) && !budget_file.empty()) {
+    try {
+      const io::BudgetFile budget = io::read_budget_file(budget_file);
+      o.calibrate.budget = budget.spec;
+      o.certificate = budget.certificate;
+    } catch (const io::IoError& e) {
+      throw ParamError("parameter " + param_name(pnh, "budget_file") + ": " + e.what());
+    }
+  }
   read_param(pnh, "min_positions_per_phase", &o.calibrate.fit.min_positions_per_phase);
   require(o.calibrate.fit.min_positions_per_phase >= 3, pnh, "min_positions_per_phase",
           "must be >= 3");

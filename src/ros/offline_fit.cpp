@@ -1,7 +1,11 @@
 #include "accel_intrinsics/ros/offline_fit.h"
 
+#include <unistd.h>
+
 #include <array>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <iomanip>
 #include <memory>
 #include <ostream>
@@ -13,9 +17,12 @@
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/exporters.h"
+#include "accel_intrinsics/io/budget_file.h"
+#include "accel_intrinsics/io/residuals_csv.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/io/text_report.h"
 #include "accel_intrinsics/ros/bag_input.h"
+#include "accel_intrinsics/ros/scripts.h"
 
 namespace accel_intrinsics {
 namespace {
@@ -254,6 +261,10 @@ void check_command_line(const OfflineFitArguments& args) {
       << kMinGravity << ", " << kMaxGravity << "))";
     throw Failure{kOfflineFitBadCommandLine, s.str()};
   }
+  if (!args.report_pdf.empty() &&
+      (args.report_pdf == args.json_out || args.report_pdf == args.csv_out)) {
+    throw Failure{kOfflineFitBadCommandLine, "--report names the same file as --json or --csv-out"};
+  }
   if (!args.json_out.empty() && args.json_out == args.csv_out) {
     throw Failure{kOfflineFitBadCommandLine, "--json and --csv-out name the same file"};
   }
@@ -275,6 +286,27 @@ void check_command_line(const OfflineFitArguments& args) {
   }
 }
 
+// The certificate from the result: scripts/certificate_report --out PDF JSON on a temporary copy
+// of the JSON; the script writes the PDF atomically and prints one line on failure.
+void write_certificate(const std::string& json, const core::PositionTable& table,
+                       const core::FitResult& certificate, const std::string& pdf,
+                       const std::string& result_name) {
+  const std::string tmp = pdf + ".json.tmp." + std::to_string(::getpid());
+  const std::string residuals = pdf + ".residuals.tmp." + std::to_string(::getpid());
+  io::write_file_atomically(tmp, json);
+  io::write_residuals_csv(residuals, table, certificate, certificate);
+  const int status = run_package_script(
+      "certificate_report",
+      {"--out", pdf, "--residuals", residuals, "--result-name", result_name, tmp});
+  std::remove(tmp.c_str());
+  std::remove(residuals.c_str());
+  if (status != 0) {
+    throw Failure{kOfflineFitBadInput, "--report: " + package_script("certificate_report") +
+                                           " failed (exit status " + std::to_string(status) +
+                                           "); it needs /usr/bin/python3 with matplotlib"};
+  }
+}
+
 int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   check_command_line(args);
   core::CalibrateOptions options;
@@ -285,10 +317,23 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   }
   options.fit.local_gravity = args.gravity;
   options.analyze = args.analyze;
+  io::BudgetFile budget_file;
+  if (!args.budget.empty()) {
+    try {
+      budget_file = io::read_budget_file(args.budget);
+    } catch (const io::IoError& e) {
+      throw Failure{kOfflineFitBadInput, as_one_line(e.what())};
+    }
+    options.budget = budget_file.spec;
+  }
 
   options.output_unit = args.output_unit;
   Input input = args.bags.empty() ? read_csv_input(args) : read_bag_input(args, err);
   check_phases(input.table, options.fit.model, options.fit.min_positions_per_phase, &input.context);
+  input.context.certificate = budget_file.certificate;
+  input.context.gravity_source = args.gravity_given
+                                     ? "offline_fit --gravity"
+                                     : "standard gravity (offline_fit default; no --gravity given)";
 
   core::CalibrationReport report;
   try {
@@ -351,6 +396,10 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   for (const auto& e : exports) {
     if (!e.second.notice.empty()) err << kOfflineFitProgram << ": note: " << e.second.notice << std::endl;
   }
+  if (!args.report_pdf.empty())
+    write_certificate(json, input.table, report.certificate, args.report_pdf,
+                      args.json_out.empty() || json_to_stdout ? "(not saved: offline_fit --json)"
+                                                              : args.json_out);
 
   io::write_text_report(json_to_stdout ? err : out, report, input.context);
   if (json_to_stdout) out << json << std::flush;

@@ -160,11 +160,12 @@ inline void expect_equal(const accel_intrinsics::IntrinsicResult& online, const 
 
 // Keys only one side writes: the node's stamp and sample counters; offline_fit's input
 // description. Every other key is shared and must mean the same (io/result_document.h).
+// local_gravity_source is on both sides but says where each tool got g (a parameter, a flag).
 inline bool node_only_key(const std::string& key) {
-  return key == "stamp" || key == "samples";
+  return key == "stamp" || key == "samples" || key == "local_gravity_source";
 }
 inline bool offline_only_key(const std::string& key) {
-  return key == "input" || key == "complete" || key == "warnings";
+  return key == "input" || key == "complete" || key == "warnings" || key == "local_gravity_source";
 }
 
 // offline_fit's JSON against the node's intrinsics.yaml: the same keys at every level and the same

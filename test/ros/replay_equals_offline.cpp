@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "offline_compare.h"
 
@@ -22,6 +23,9 @@ TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
   pnh.getParam("recorder", recorder);
   pnh.getParam("online_dir", online_dir);
   pnh.getParam("timeout_s", timeout_s);
+  // budget_node.test: the node has budget_file = this file, offline_fit gets --budget.
+  std::string budget;
+  pnh.getParam("budget", budget);
   std::remove(bag.c_str());
   std::remove((bag + ".active").c_str());
 
@@ -57,14 +61,19 @@ TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
 
   const std::string json_path = bag + ".json";
   const std::string csv_path = bag + ".csv";
-  const oc::ToolRun r =
-      oc::run_offline_fit({"--bag", bag, "--json", json_path, "--csv-out", csv_path}, bag + ".err");
+  std::vector<std::string> args = {"--bag", bag, "--json", json_path, "--csv-out", csv_path};
+  if (!budget.empty()) {
+    args.push_back("--budget");
+    args.push_back(budget);
+  }
+  const oc::ToolRun r = oc::run_offline_fit(args, bag + ".err");
   ASSERT_EQ(r.status, 0) << r.err;
   const nlohmann::json j = nlohmann::json::parse(oc::read_file(json_path));
   EXPECT_EQ(j["complete"], true) << j["warnings"].dump();
   EXPECT_EQ(j["input"]["dropped_late"], 0);
   EXPECT_EQ(j["positions"]["x"], 6);
   oc::expect_equal(online, j);
+  EXPECT_EQ(j.contains("uncertainty_budget"), !budget.empty());
 
   // The node's result file: the same document as offline_fit's JSON (contract keys,
   // fitted_effects, certificate_model, ...), value for value; only stamp and samples (node) and

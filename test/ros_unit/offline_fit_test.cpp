@@ -416,6 +416,7 @@ json fit_part(json j) {
   j.erase("input");
   j.erase("complete");
   j.erase("warnings");
+  j.erase("local_gravity_source");  // offline_fit's context, like the three above
   return j;
 }
 

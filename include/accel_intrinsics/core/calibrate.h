@@ -14,6 +14,7 @@
 #include "accel_intrinsics/core/protocol.h"
 #include "accel_intrinsics/core/quality.h"
 #include "accel_intrinsics/core/raw_stream_analysis.h"
+#include "accel_intrinsics/core/uncertainty_budget.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -35,6 +36,8 @@ struct CalibrateOptions {
   // counts, V, ...: responsivities are then in that unit per m/s^2, and the quality gate checks
   // their spread only.
   std::string output_unit = "m/s^2";
+  // Type-B budget of the certificate (uncertainty_budget.h, DESIGN.md section 9); none: type A only.
+  std::optional<BudgetSpec> budget;
 };
 
 struct CalibrationReport {
@@ -51,12 +54,16 @@ struct CalibrationReport {
   std::string output_unit = "m/s^2";
   // White noise from the dwells (noise.h), when they hold samples and durations.
   std::optional<DwellNoise> noise;
+  // When options.budget: the certificate's uncertainty budget (type A plus the type-B sources).
+  std::optional<UncertaintyBudget> budget;
 };
 
 // Fit -> analysis -> timing lag -> quality gate. Throws FitError when the fit fails (the message says what is
 // missing; fit() may also throw std::invalid_argument for bad options). A failing analysis or
 // lag estimate does not throw: it leaves analysis_error and the base fit as the certificate.
-// `raw` may be null (a position table alone: no timing lag).
+// `raw` may be null (a position table alone: no timing lag). With options.budget, the budget of
+// the certificate is computed last (its refit failing throws FitError, an invalid spec
+// std::invalid_argument).
 CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
                             const CalibrateOptions& options);
 

@@ -17,7 +17,10 @@
 //     named, timing_lag appended when detected), ambiguous, gap {before, after}, screening, ...
 //     (analysis_report.h; never replacing a key above), timing_lag when estimated;
 //     analysis_error when the analysis failed
-//   from the context: stamp (node), samples {used, dropped_*} (node), input, complete, warnings
+//   with a budget (offline_fit --budget, the node's budget_file): uncertainty_budget {sources,
+//     combined_std, expanded {k, ...}, samples, seed, method} (DESIGN.md section 9), and
+//     certificate {lab, device, ...} (the budget file's certificate block) when it has fields
+//   from the context: local_gravity_source, stamp (node), samples {used, dropped_*} (node), input, complete, warnings
 //     (offline_fit)
 //
 // Non-finite numbers are null. Keys come out sorted. Files are written atomically (atomic_file.h).
@@ -28,12 +31,14 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "accel_intrinsics/core/calibrate.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/intrinsics.h"
+#include "accel_intrinsics/core/uncertainty_budget.h"
 
 namespace accel_intrinsics {
 namespace io {
@@ -71,6 +76,10 @@ struct ResultContext {
   std::optional<InputDescription> input;
   bool complete = true;
   std::vector<std::string> warnings;
+  // The budget file's certificate block ("certificate" key) and where g came from
+  // ("local_gravity_source"); empty: omitted.
+  std::vector<std::pair<std::string, std::string>> certificate;
+  std::string gravity_source;
 };
 
 std::string result_json_text(const core::CalibrationReport& report, const ResultContext& context);
@@ -103,6 +112,10 @@ struct StoredResult {
   // noise_density and sample_rate_hz when the file has them, else NaN.
   Eigen::Vector3d noise_density = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   double sample_rate_hz = std::numeric_limits<double>::quiet_NaN();
+  Eigen::Vector3d O_std = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  // uncertainty_budget.expanded when the result has one (comparisons, certificates).
+  std::optional<core::IntrinsicValues> expanded;  // angles in radians
+  double coverage_factor = 2.0;
 };
 
 // Reads a result written by write_result_json/yaml, by offline_fit before them, or an old node

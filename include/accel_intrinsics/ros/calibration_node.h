@@ -22,6 +22,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <utility>
 #include <thread>
 #include <vector>
 
@@ -56,6 +57,10 @@ struct CalibrationOptions {
   // After DONE, wall time without a message or clock tick after which the run is fitted although
   // the reorder window has not passed in stamp time (a replay that ended at DONE).
   double idle_fit_after_s = 1.0;
+  // budget_file (io/budget_file.h): its spec goes to calibrate.budget, its certificate block and
+  // the source of g to the result document.
+  std::vector<std::pair<std::string, std::string>> certificate;
+  std::string gravity_source;
 
   // Reads the private parameters; throws ParamError naming the parameter.
   static CalibrationOptions load(const ros::NodeHandle& pnh);

@@ -5,7 +5,8 @@
 //   offline_fit (--bag FILE|DIR [--bag ...] | --csv FILE) [--imu-topic T] [--command-topic T]
 //               [--gravity G] [--model joint|eq4] [--analyze] [--json OUT] [--csv-out FILE]
 //               [--settle-discard SECONDS] [--imu-time-offset SECONDS] [--skip-clock-check]
-//               [--output-unit UNIT] [--export NAME=FILE]...
+//               [--output-unit UNIT] [--export NAME=FILE]... [--budget FILE]
+//               [--report FILE.pdf]
 //
 // The joint model takes any set of known orientations (position table rows with f_x,f_y,f_z)
 // that determines S and O, and a gimbal run missing a phase when the others determine S: the
@@ -32,6 +33,10 @@
 // imu_calib, imucal, kalibr, imu_tk, px4, ardupilot), with the result files, all or nothing;
 // what a format leaves out (px4/ardupilot: the largest error over all orientations) goes to
 // stderr as "offline_fit: note: ...".
+// --budget FILE (io/budget_file.h, config/uncertainty_budget.yaml) adds the type-B budget of the
+// certificate (core/uncertainty_budget.h) as `uncertainty_budget`, and the file's certificate
+// block as `certificate`. --report FILE.pdf writes the calibration certificate with
+// scripts/certificate_report (/usr/bin/python3, matplotlib), from the same JSON.
 #pragma once
 
 #include <iosfwd>
@@ -69,11 +74,14 @@ struct OfflineFitArguments {
   std::string output_unit = "m/s^2";  // unit of the raw outputs (counts, V, ...)
   bool skip_clock_check = false;
   std::vector<std::string> exports;  // "NAME=FILE", each parsed by io::parse_export_spec
+  std::string budget;      // uncertainty budget file (YAML); empty: type A only
+  std::string report_pdf;  // certificate PDF; empty: none
   // Given explicitly (they apply to --bag only, and are refused with --csv).
   bool imu_topic_given = false;
   bool command_topic_given = false;
   bool settle_discard_given = false;
   bool imu_time_offset_given = false;
+  bool gravity_given = false;
 };
 
 // Runs the tool: the text report on `out` (on `err` when json_out is "-"), progress, warnings
