@@ -286,14 +286,13 @@ ClockCheckResult ClockCheck::result() const {
   }
   r.explained_at_offset = explained(best_shift, pad);
   r.offset_s = best_shift;
-  // The shift must also put clearly more motion inside the step moves themselves (unpadded), or
-  // be a sizeable part of a move: a centroid off the middle of moves that hold all the motion
-  // is no evidence of another clock (a gimbal that reports SETTLED late).
+  // The shift must also put more of the motion inside the step moves themselves (unpadded): a
+  // centroid off the middle of moves that already hold all the motion is no evidence of another
+  // clock (a gimbal that reports SETTLED a settle time after it stopped), and leaves the dwells
+  // free of motion.
   r.best_shift_s = best_shift;
   r.gain = explained(best_shift, 0.0, true) - explained(0.0, 0.0, true);
-  r.offset_found = std::abs(best_shift) >= options_.min_offset_s &&
-                   (r.gain >= options_.min_gain ||
-                    std::abs(best_shift) >= options_.min_offset_of_move * typical_move);
+  r.offset_found = std::abs(best_shift) >= options_.min_offset_s && r.gain >= options_.min_gain;
   if (!r.offset_found) r.offset_s = 0.0;
   return r;
 }

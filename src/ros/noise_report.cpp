@@ -22,10 +22,8 @@
 #include "accel_intrinsics/ros/bag_format.h"
 #include "accel_intrinsics/ros/bag_topics.h"
 #include "accel_intrinsics/ros/offline_fit.h"
+#include "accel_intrinsics/ros/scripts.h"
 
-#ifndef ACCEL_SOURCE_SCRIPTS_DIR
-#define ACCEL_SOURCE_SCRIPTS_DIR ""
-#endif
 
 namespace accel_intrinsics {
 namespace {
@@ -113,7 +111,7 @@ int run(const NoiseReportArguments& args, std::ostream& out, std::ostream& err) 
     ::close(fd);
     const std::string json_path = templ;
     io::write_file_atomically(json_path, json);
-    const std::string script = plot_allan_script();
+    const std::string script = package_script("plot_allan");
     const std::string command = "/usr/bin/python3 '" + script + "' --json '" + json_path +
                                 "' --out '" + args.plot_out + "' 2>&1";
     FILE* pipe = ::popen(command.c_str(), "r");
@@ -187,18 +185,6 @@ void read_samples_csv(const std::string& path, std::vector<double>* stamps,
   if (number == 0) throw std::runtime_error(path + ": empty file (expected the header t,u,v,w)");
 }
 
-std::string plot_allan_script() {
-  if (const char* env = std::getenv("ACCEL_PLOT_ALLAN")) return env;
-  char self[4096];
-  const ssize_t n = ::readlink("/proc/self/exe", self, sizeof(self) - 1);
-  if (n > 0) {
-    self[n] = '\0';
-    std::string dir(self);
-    dir = dir.substr(0, dir.rfind('/'));
-    if (is_file(dir + "/plot_allan")) return dir + "/plot_allan";
-  }
-  return std::string(ACCEL_SOURCE_SCRIPTS_DIR) + "/plot_allan";
-}
 
 int run_noise_report(const NoiseReportArguments& args, std::ostream& out, std::ostream& err) {
   try {

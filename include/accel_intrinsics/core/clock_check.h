@@ -10,7 +10,8 @@
 //     midpoint (motion profiles are symmetric: raised cosine, trapezoid).
 // A shift of `min_offset_s` or more is an unsynchronized clock: the run must not be fitted.
 // Smaller lags are the timing-lag analysis' job (raw_stream_analysis.h). A gimbal that reports
-// SETTLED long after it stopped moving biases step 3 by half that delay (see min_offset_of_move).
+// SETTLED long after it stopped moving biases step 3 by half that delay; such a shift is not
+// reported, since it moves no motion out of the dwells (min_gain).
 //
 // Memory: one bin per `bin_s` of IMU time (100 per second by default), whatever the IMU rate.
 #pragma once
@@ -36,12 +37,11 @@ struct ClockCheckOptions {
   // The IMU motion must follow the moves: at the best shift at least this share of it lies
   // inside them, or the check cannot tell (a DUT that does not turn, a table of other data).
   double min_explained = 0.5;
-  // An offset must put this much more of the motion inside the (unpadded) step moves than none,
-  // or be at least `min_offset_of_move` of a typical move's duration. A gimbal that reports
-  // SETTLED a delay D after it stops looks like an IMU clock D/2 early: it passes while
-  // D < 2/3 of the move (D/2 < 0.2 (move + D)).
-  double min_gain = 0.02;
-  double min_offset_of_move = 0.2;
+  // An offset must put at least this share of the motion more inside the (unpadded) step moves
+  // than none: the motion it would otherwise leave in the dwells. A gimbal that reports SETTLED a
+  // delay after it stops looks like an IMU clock half that delay early, but all its motion lies
+  // inside the moves: it passes.
+  double min_gain = 0.01;
   // Coarse shifts explaining at least (1 - alias_tolerance) x the best are compared by fit.
   double alias_tolerance = 0.1;
   // Longest stretch of IMU time summarized (bins beyond it are not allocated): a guard against a

@@ -39,8 +39,5 @@ int run_noise_report(const NoiseReportArguments& args, std::ostream& out, std::o
 void read_samples_csv(const std::string& path, std::vector<double>* stamps,
                       std::vector<Eigen::Vector3d>* outputs);
 
-// The plot script: $ACCEL_PLOT_ALLAN, else plot_allan next to this executable (installed), else
-// the package's scripts/plot_allan (devel space).
-std::string plot_allan_script();
 
 }  // namespace accel_intrinsics
