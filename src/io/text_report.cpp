@@ -85,7 +85,8 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
 namespace {
 
 // The expanded uncertainties of the budget (the JSON has every source).
-void write_budget_report(std::ostream& out, const core::UncertaintyBudget& b) {
+void write_budget_report(std::ostream& out, const core::UncertaintyBudget& b,
+                         const std::string& output_unit) {
   out << "\n  uncertainty budget: " << b.sources.size() << " sources (type A";
   for (std::size_t i = 1; i < b.sources.size(); ++i) out << ", " << b.sources[i].name;
   out << "), expanded with k = " << b.coverage_factor << "\n";
@@ -98,7 +99,7 @@ void write_budget_report(std::ostream& out, const core::UncertaintyBudget& b) {
         << core::rad_to_deg(b.expanded.angles_rad(i)) << " deg\n";
   for (int s = 0; s < 3; ++s)
     out << "    U O_" << core::accelerometer_name(s) << "       " << std::setprecision(2)
-        << b.expanded.offset(s) << " m/s^2\n";
+        << b.expanded.offset(s) << " " << output_unit << "\n";
 }
 
 }  // namespace
@@ -112,7 +113,7 @@ void write_text_report(std::ostream& out, const core::CalibrationReport& report,
   }
   out << "  quality gate:  " << (report.quality.pass ? "passed" : "FAILED") << "\n";
   for (const std::string& reason : report.quality.reasons) out << "    - " << reason << "\n";
-  if (report.budget) write_budget_report(out, *report.budget);
+  if (report.budget) write_budget_report(out, *report.budget, report.output_unit);
   if (!report.analysis) return;
   out << "\n";
   write_analysis_report(out, *report.analysis);
