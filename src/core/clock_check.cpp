@@ -248,14 +248,17 @@ ClockCheckResult ClockCheck::result() const {
     }
   };
 
-  // Coarse: every shift that lets the two streams overlap, at the bin resolution.
+  // Coarse: every shift that lets the two streams overlap, in steps of one block (the padded
+  // moves are a block wider on each side, so no peak falls between steps); refine() finds the
+  // shift to the bin.
+  const double coarse_step = pad;
   const double lo = b.origin_s - moves.back().end_s;
   const double hi = b.origin_s + static_cast<double>(b.size) * b.bin_s - moves.front().start_s;
-  const auto steps = static_cast<std::size_t>(std::ceil((hi - lo) / b.bin_s)) + 1;
+  const auto steps = static_cast<std::size_t>(std::ceil((hi - lo) / coarse_step)) + 1;
   std::vector<double> share(steps);
   double best = 0.0;
   for (std::size_t i = 0; i < steps; ++i) {
-    share[i] = explained(lo + static_cast<double>(i) * b.bin_s, pad);
+    share[i] = explained(lo + static_cast<double>(i) * coarse_step, pad);
     best = std::max(best, share[i]);
   }
   r.explained_at_zero = explained(0.0, pad);
@@ -271,7 +274,7 @@ ClockCheckResult ClockCheck::result() const {
     const bool rising = i == 0 || share[i] > share[i - 1];
     const bool peak = i + 1 == steps || share[i] >= share[i + 1];
     if (rising && peak && share[i] >= (1.0 - options_.alias_tolerance) * best) {
-      candidates.push_back(lo + static_cast<double>(i) * b.bin_s);
+      candidates.push_back(lo + static_cast<double>(i) * coarse_step);
     }
   }
   double best_shift = 0.0;
