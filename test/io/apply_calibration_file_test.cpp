@@ -17,24 +17,15 @@
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/io/result_document.h"
+#include "../support/test_files.h"
 
 namespace accel_intrinsics {
 namespace {
 
+using accel_intrinsics::test_support::read_file;
+using accel_intrinsics::test_support::TempDir;
+
 namespace fs = std::filesystem;
-
-class TempDir {
- public:
-  TempDir() {
-    char templ[] = "/tmp/apply_file_test_XXXXXX";
-    path_ = ::mkdtemp(templ);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string file(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
 
 core::CalibrationReport report() {
   core::SimulationOptions sim;

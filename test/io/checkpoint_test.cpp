@@ -12,19 +12,14 @@
 #include <sstream>
 
 #include "accel_intrinsics/io/atomic_file.h"
+#include "../support/test_files.h"
 
 namespace accel_intrinsics {
 namespace io {
 namespace {
 
-struct TempDir {
-  std::string path;
-  TempDir() {
-    char templ[] = "/tmp/checkpoint_test_XXXXXX";
-    path = ::mkdtemp(templ);
-  }
-  ~TempDir() { std::filesystem::remove_all(path); }
-};
+using accel_intrinsics::test_support::read_file;
+using accel_intrinsics::test_support::TempDir;
 
 core::DwellRecord row(core::Phase phase, std::uint32_t step) {
   core::DwellRecord r;
@@ -39,30 +34,23 @@ core::DwellRecord row(core::Phase phase, std::uint32_t step) {
   return r;
 }
 
-std::string read_text(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 TEST(Checkpoint, TornLastLineIsDroppedAndTheRunContinuesAfterTheCompleteRows) {
   TempDir dir;
   {
-    CheckpointFiles files(dir.path, "rig1_");
+    CheckpointFiles files(dir.path(), "rig1_");
     for (std::uint32_t k = 0; k < 3; ++k) files.append_row(row(core::Phase::X, k));
     core::CheckpointState state;
     state.time_origin_s = 123.5;
     state.steps = 6;
     files.write_state(state);
   }
-  const std::string table_path = dir.path + "/rig1_position_table.csv";
+  const std::string table_path = dir.path() + "/rig1_position_table.csv";
   {
     // The kill: half of the fourth row reached the disk.
     std::ofstream out(table_path, std::ios::app);
     out << "x,3,1.5,30,35,10";
   }
-  CheckpointFiles files(dir.path, "rig1_");
+  CheckpointFiles files(dir.path(), "rig1_");
   const std::optional<CheckpointFiles::Restored> restored = files.load();
   ASSERT_TRUE(restored.has_value());
   EXPECT_TRUE(restored->dropped_torn_line);
@@ -74,13 +62,13 @@ TEST(Checkpoint, TornLastLineIsDroppedAndTheRunContinuesAfterTheCompleteRows) {
     EXPECT_EQ(restored->table.rows[k].step, k);
     EXPECT_EQ(restored->table.rows[k].mean, row(core::Phase::X, k).mean);
   }
-  const std::string text = read_text(table_path);
+  const std::string text = read_file(table_path);
   EXPECT_EQ(text.back(), '\n');
   EXPECT_EQ(text.find("x,3,1.5,30,35,10"), std::string::npos) << text;
 
   // The dwell is measured again and appended after the complete rows.
   files.append_row(row(core::Phase::X, 3));
-  CheckpointFiles again(dir.path, "rig1_");
+  CheckpointFiles again(dir.path(), "rig1_");
   const auto reloaded = again.load();
   ASSERT_TRUE(reloaded.has_value());
   EXPECT_FALSE(reloaded->dropped_torn_line);
@@ -91,7 +79,7 @@ TEST(Checkpoint, TornLastLineIsDroppedAndTheRunContinuesAfterTheCompleteRows) {
 
 TEST(Checkpoint, NoStateFileMeansNoCheckpoint) {
   TempDir dir;
-  CheckpointFiles files(dir.path, "");
+  CheckpointFiles files(dir.path(), "");
   EXPECT_FALSE(files.load().has_value());
   CheckpointFiles disabled("", "");
   EXPECT_FALSE(disabled.enabled());
@@ -100,7 +88,7 @@ TEST(Checkpoint, NoStateFileMeansNoCheckpoint) {
 
 TEST(Checkpoint, BrokenStateFileIsAnErrorNamingIt) {
   TempDir dir;
-  CheckpointFiles files(dir.path, "");
+  CheckpointFiles files(dir.path(), "");
   files.append_row(row(core::Phase::Y, 0));
   {
     std::ofstream out(files.state_path());
@@ -116,7 +104,7 @@ TEST(Checkpoint, BrokenStateFileIsAnErrorNamingIt) {
 
 TEST(Checkpoint, ClearRemovesBothFiles) {
   TempDir dir;
-  CheckpointFiles files(dir.path, "");
+  CheckpointFiles files(dir.path(), "");
   files.append_row(row(core::Phase::Z, 1));
   files.write_state(core::CheckpointState());
   ASSERT_TRUE(std::filesystem::exists(files.table_path()));

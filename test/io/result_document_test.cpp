@@ -18,39 +18,16 @@
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/simulator.h"
 #include "accel_intrinsics/io/atomic_file.h"
+#include "../support/test_files.h"
 
 namespace accel_intrinsics {
 namespace {
 
+using accel_intrinsics::test_support::read_file;
+using accel_intrinsics::test_support::TempDir;
+
 namespace fs = std::filesystem;
 using namespace core;
-
-class TempDir {
- public:
-  TempDir() {
-    char templ[] = "/tmp/io_test_XXXXXX";
-    path_ = ::mkdtemp(templ);
-  }
-  ~TempDir() {
-    if (std::getenv("KEEP_TEST_FILES") == nullptr) fs::remove_all(path_);
-  }
-  std::string file(const std::string& name) const { return path_ + "/" + name; }
-  std::set<std::string> entries() const {
-    std::set<std::string> out;
-    for (const auto& e : fs::directory_iterator(path_)) out.insert(e.path().filename().string());
-    return out;
-  }
-
- private:
-  std::string path_;
-};
-
-std::string read_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 // A run with a quadratic term and a timing lag, analyzed, the refit as certificate: every kind of
 // key (fitted_effects, effects, timing_lag, nulls of a csv input) appears.

@@ -24,6 +24,7 @@
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/compare_results.h"
 #include "accel_intrinsics/ros/offline_fit.h"
+#include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
@@ -32,29 +33,10 @@ using nlohmann::json;
 
 namespace {
 
+using accel_intrinsics::test_support::read_file;
+using accel_intrinsics::test_support::TempDir;
+
 const std::string kBudget = std::string(ACCEL_SOURCE_DIR) + "/config/uncertainty_budget.yaml";
-
-class TempDir {
- public:
-  TempDir() {
-    char templ[] = "/tmp/certificate_test_XXXXXX";
-    path_ = ::mkdtemp(templ);
-  }
-  ~TempDir() {
-    if (std::getenv("KEEP_TEST_FILES") == nullptr) fs::remove_all(path_);
-  }
-  std::string file(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
-
-std::string read_text(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 core::Device device(std::uint64_t seed) {
   core::Device d;
@@ -95,7 +77,7 @@ json offline(const std::string& csv, const std::string& out_json, bool budget,
   if (err_text) *err_text = err.str();
   EXPECT_EQ(status, 0) << err.str();
   if (status != 0) return json();
-  return json::parse(read_text(out_json));
+  return json::parse(read_file(out_json));
 }
 
 int shell(const std::string& command) {
@@ -148,7 +130,7 @@ TEST(Certificate, PdfTextStatesTheJsonNumbersRoundedToTheirUncertainty) {
   const json j = offline(csv, dir.file("r.json"), true, pdf, 9.80123);
   ASSERT_TRUE(fs::exists(pdf));
   ASSERT_EQ(shell("pdftotext -layout " + pdf + " " + dir.file("certificate.txt")), 0);
-  const std::string text = read_text(dir.file("certificate.txt"));
+  const std::string text = read_file(dir.file("certificate.txt"));
 
   EXPECT_NE(text.find(j.at("certificate").at("lab").get<std::string>()), std::string::npos);
   EXPECT_NE(text.find(j.at("certificate").at("serial").get<std::string>()), std::string::npos);
@@ -208,7 +190,7 @@ TEST(Certificate, StandaloneScriptOnASavedResultWithoutBudgetSaysTypeAOnly) {
                   "/scripts/certificate_report --out " + pdf + " " + dir.file("r.json")),
             0);
   ASSERT_EQ(shell("pdftotext -layout " + pdf + " " + dir.file("c.txt")), 0);
-  const std::string text = read_text(dir.file("c.txt"));
+  const std::string text = read_file(dir.file("c.txt"));
   EXPECT_NE(text.find("TYPE A ONLY"), std::string::npos);
   EXPECT_NE(text.find("no residuals given"), std::string::npos);
   // U = 2 x type A for responsivity_u, two significant digits.
@@ -250,7 +232,7 @@ TEST(CompareResults, RemountedDeviceIsConsistentChangedDeviceIsNot) {
                     dir.file("ab.png")),
             ai::kCompareConsistent)
       << err;
-  const json c = json::parse(read_text(dir.file("ab.json")));
+  const json c = json::parse(read_file(dir.file("ab.json")));
   EXPECT_TRUE(c.at("consistent").get<bool>());
   for (const char* p : {"responsivity_u", "responsivity_v", "responsivity_w", "angle_uv",
                         "angle_vw", "angle_wu", "offset_u", "offset_v", "offset_w"}) {
@@ -260,7 +242,7 @@ TEST(CompareResults, RemountedDeviceIsConsistentChangedDeviceIsNot) {
   EXPECT_TRUE(fs::exists(dir.file("ab.png")));
 
   // |u| changed by 5 expanded uncertainties of the first result.
-  const json a = json::parse(read_text(dir.file("a.json")));
+  const json a = json::parse(read_file(dir.file("a.json")));
   const double U = a.at("uncertainty_budget").at("expanded").at("responsivity").at("u");
   core::Device changed = d;
   changed.S.row(0) *= 1.0 + 5.0 * U / d.S.row(0).norm();
@@ -268,14 +250,14 @@ TEST(CompareResults, RemountedDeviceIsConsistentChangedDeviceIsNot) {
   EXPECT_EQ(compare({dir.file("a.json"), dir.file("c.json")}, dir.file("ac.json"), false, &err),
             ai::kCompareInconsistent)
       << err;
-  const json ac = json::parse(read_text(dir.file("ac.json")));
+  const json ac = json::parse(read_file(dir.file("ac.json")));
   EXPECT_GT(std::abs(ac.at("parameters").at("responsivity_u").at("E_n")[0].get<double>()), 1.0);
 
   // Three results: reference value and degrees of equivalence.
   EXPECT_EQ(compare({dir.file("a.json"), dir.file("b.json"), dir.file("c.json")},
                     dir.file("abc.json"), false, &err),
             ai::kCompareInconsistent);
-  const json abc = json::parse(read_text(dir.file("abc.json")));
+  const json abc = json::parse(read_file(dir.file("abc.json")));
   EXPECT_EQ(abc.at("parameters").at("angle_uv").at("degrees_of_equivalence").size(), 3u);
   EXPECT_TRUE(abc.at("parameters").at("angle_uv").contains("reference_value"));
 }
@@ -299,7 +281,7 @@ TEST(CompareResults, RefusesDifferentGravityAndResultsWithoutUncertaintiesInOneL
   const int status =
       compare({dir.file("a.json"), dir.file("c.json")}, dir.file("t.json"), true, &err);
   EXPECT_TRUE(status == ai::kCompareConsistent || status == ai::kCompareInconsistent) << err;
-  EXPECT_EQ(json::parse(read_text(dir.file("t.json"))).at("uncertainty"), "type_a_only");
+  EXPECT_EQ(json::parse(read_file(dir.file("t.json"))).at("uncertainty"), "type_a_only");
   EXPECT_EQ(compare({dir.file("a.json")}, "", false, &err), ai::kCompareBadInput);
 }
 
@@ -327,7 +309,7 @@ TEST(Certificate, StandaloneScriptReadsTheNodesYamlToo) {
                   "/scripts/certificate_report --out " + pdf + " " + dir.file("intrinsics.yaml")),
             0);
   ASSERT_EQ(shell("pdftotext -layout " + pdf + " " + dir.file("y.txt")), 0);
-  const std::string text = read_text(dir.file("y.txt"));
+  const std::string text = read_file(dir.file("y.txt"));
   EXPECT_NE(text.find("YAML Lab"), std::string::npos);
   EXPECT_NE(text.find("angle_random_std_deg"), std::string::npos);
   std::smatch m;

@@ -19,6 +19,7 @@
 #include "accel_intrinsics/core/simulator.h"
 #include "accel_intrinsics/ros/conversions.h"
 #include "accel_intrinsics/ros/offline_fit.h"
+#include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
@@ -26,15 +27,8 @@ using json = nlohmann::json;
 
 namespace {
 
-struct TempDir {
-  std::string path;
-  TempDir() {
-    char templ[] = "/tmp/messy_bags_test_XXXXXX";
-    path = ::mkdtemp(templ);
-  }
-  ~TempDir() { std::filesystem::remove_all(path); }
-  std::string file(const std::string& name) const { return path + "/" + name; }
-};
+using accel_intrinsics::test_support::read_file;
+using accel_intrinsics::test_support::TempDir;
 
 core::SimulationOptions stand() {
   core::SimulationOptions sim;

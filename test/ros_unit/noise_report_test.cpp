@@ -1,6 +1,7 @@
 // noise_report in process: a CSV and a bag of simulated static samples with known white noise
 // give N within 5 %; the JSON, kalibr YAML and PNG appear; bad input is one line and no file.
 #include "accel_intrinsics/ros/noise_report.h"
+#include "../support/test_files.h"
 
 #include <gtest/gtest.h>
 #include <rosbag/bag.h>
@@ -23,27 +24,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-class TempDir {
- public:
-  TempDir() {
-    char templ[] = "/tmp/noise_report_test_XXXXXX";
-    path_ = ::mkdtemp(templ);
-  }
-  ~TempDir() {
-    if (std::getenv("KEEP_TEST_FILES") == nullptr) fs::remove_all(path_);
-  }
-  std::string file(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using accel_intrinsics::test_support::read_file;
+using accel_intrinsics::test_support::TempDir;
 
 constexpr double kRate = 100.0;
 const double kDensity[3] = {0.001, 0.0015, 0.002};  // (m/s^2)/sqrt(Hz), continuous-time
@@ -77,7 +59,7 @@ TEST(NoiseReport, CsvGivesNAndWritesJsonKalibrAndPlot) {
   std::ostringstream out, err;
   ASSERT_EQ(ai::run_noise_report(args, out, err), 0) << err.str();
   EXPECT_NE(out.str().find("u: N "), std::string::npos) << out.str();
-  const nlohmann::json j = nlohmann::json::parse(slurp(args.json_out));
+  const nlohmann::json j = nlohmann::json::parse(read_file(args.json_out));
   const char* axes[3] = {"u", "v", "w"};
   for (int a = 0; a < 3; ++a) {
     EXPECT_NEAR(j["noise_density"][axes[a]].get<double>(), kDensity[a], 0.05 * kDensity[a]) << axes[a];
@@ -93,7 +75,7 @@ TEST(NoiseReport, CsvGivesNAndWritesJsonKalibrAndPlot) {
   EXPECT_NEAR(kalibr["accelerometer_noise_density"].as<double>(), kDensity[2], 0.05 * kDensity[2]);
   EXPECT_TRUE(kalibr["accelerometer_random_walk"]);
   EXPECT_NEAR(kalibr["update_rate"].as<double>(), kRate, 1e-3);
-  const std::string png = slurp(args.plot_out);
+  const std::string png = read_file(args.plot_out);
   ASSERT_GT(png.size(), 1000u);
   EXPECT_EQ(png.substr(1, 3), "PNG");
 }
@@ -125,8 +107,8 @@ TEST(NoiseReport, BagGivesTheSameAsCsv) {
   std::ostringstream out, err;
   ASSERT_EQ(ai::run_noise_report(from_bag, out, err), 0) << err.str();
   ASSERT_EQ(ai::run_noise_report(from_csv, out, err), 0) << err.str();
-  const nlohmann::json a = nlohmann::json::parse(slurp(from_bag.json_out));
-  const nlohmann::json b = nlohmann::json::parse(slurp(from_csv.json_out));
+  const nlohmann::json a = nlohmann::json::parse(read_file(from_bag.json_out));
+  const nlohmann::json b = nlohmann::json::parse(read_file(from_csv.json_out));
   for (const char* axis : {"u", "v", "w"}) {
     EXPECT_NEAR(a["noise_density"][axis].get<double>(), b["noise_density"][axis].get<double>(),
                 1e-9 * b["noise_density"][axis].get<double>());
