@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "accel_intrinsics/core/calibration_forms.h"
+#include "accel_intrinsics/core/quality.h"
 #include "accel_intrinsics/io/atomic_file.h"
 
 namespace accel_intrinsics {
@@ -323,6 +324,7 @@ CalibrationToExport calibration_to_export(const StoredResult& result, const std:
   c.terms_left_out = terms_of(names, targets);
   c.noise_density = result.noise_density;
   c.rate_hz = result.sample_rate_hz;
+  if (!result.quality_pass) c.quality_failure = core::Quality{false, result.quality_reasons}.summary();
   c.source = source;
   return c;
 }
@@ -346,6 +348,7 @@ CalibrationToExport calibration_to_export(const core::FitResult& fit, const std:
 CalibrationToExport calibration_to_export(const core::CalibrationReport& report,
                                           const std::string& source) {
   CalibrationToExport c = calibration_to_export(report.certificate, source);
+  if (!report.quality.pass) c.quality_failure = report.quality.summary();
   if (report.noise) {
     c.noise_density = report.noise->density;
     c.rate_hz = report.noise->rate_hz;
@@ -355,6 +358,10 @@ CalibrationToExport calibration_to_export(const core::CalibrationReport& report,
 
 ExportText export_text(ExportFormat format, const CalibrationToExport& c) {
   const std::string what = std::string("cannot export to ") + export_format_name(format) + ": ";
+  if (!c.quality_failure.empty()) {
+    throw IoError(what + "the result fails the quality gate (" + c.quality_failure +
+                  "); a failing fit is not a calibration to apply");
+  }
   if (!(std::isfinite(c.local_gravity) && c.local_gravity > 0.0)) {
     throw IoError(what + "the result states no local gravity");
   }

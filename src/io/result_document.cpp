@@ -386,6 +386,12 @@ StoredResult read_result_file(const std::string& path) {
   }
 
   if (root["noise_density"]) out.noise_density = r.triple("noise_density", kAccelerometers);
+  if (const YAML::Node quality = root["quality"]) {
+    out.quality_pass = r.child(quality, "pass", "quality.").as<bool>(false);
+    if (const YAML::Node reasons = quality["reasons"]) {
+      for (const YAML::Node& reason : reasons) out.quality_reasons.push_back(reason.as<std::string>(""));
+    }
+  }
   if (root["sample_rate_hz"]) {
     out.sample_rate_hz = r.scalar(root["sample_rate_hz"], "sample_rate_hz");
   }

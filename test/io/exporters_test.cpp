@@ -25,34 +25,16 @@
 #include "accel_intrinsics/core/simulator.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/result_document.h"
+#include "../support/test_files.h"
 
 namespace accel_intrinsics {
 namespace {
 
+using accel_intrinsics::test_support::read_file;
+using accel_intrinsics::test_support::TempDir;
+
 namespace fs = std::filesystem;
 using namespace core;
-
-class TempDir {
- public:
-  TempDir() {
-    char templ[] = "/tmp/export_test_XXXXXX";
-    path_ = ::mkdtemp(templ);
-  }
-  ~TempDir() {
-    if (std::getenv("KEEP_TEST_FILES") == nullptr) fs::remove_all(path_);
-  }
-  std::string file(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 // A triad with 1-3 % scale errors, misalignments of about 1 degree and offsets.
 SimulationOptions device_options(std::uint64_t seed) {
@@ -113,7 +95,6 @@ Eigen::Vector3d corrected_std(const FitResult& fit, const DwellRecord& row) {
   return cov.diagonal().cwiseSqrt();
 }
 
-
 io::CalibrationToExport to_export() {
   io::CalibrationToExport c = io::calibration_to_export(fixture().fit, "simulated run (seed 11)");
   c.date = "2026-11-23T10:00:00Z";
@@ -172,7 +153,7 @@ void expect_recovers_magnitude(Apply apply) {
 TEST(Exporters, ImuCalibRoundTrip) {
   TempDir dir;
   const std::string path = write(io::ExportFormat::ImuCalib, dir);
-  expect_statements(slurp(path));
+  expect_statements(read_file(path));
   const YAML::Node node = YAML::LoadFile(path);
   ASSERT_TRUE(node["SM"].IsSequence());
   ASSERT_EQ(node["SM"].size(), 9u);
@@ -189,7 +170,7 @@ TEST(Exporters, ImuCalibRoundTrip) {
 TEST(Exporters, ImucalRoundTrip) {
   TempDir dir;
   const std::string path = write(io::ExportFormat::Imucal, dir);
-  const nlohmann::json j = nlohmann::json::parse(slurp(path));
+  const nlohmann::json j = nlohmann::json::parse(read_file(path));
   expect_statements(j.at("comment").get<std::string>());
   EXPECT_EQ(j.at("_format_version"), "2.0.0");
   EXPECT_EQ(j.at("cal_type"), "Ferraris");
@@ -215,7 +196,7 @@ TEST(Exporters, ImucalRoundTrip) {
 TEST(Exporters, KalibrRoundTrip) {
   TempDir dir;
   const std::string path = write(io::ExportFormat::Kalibr, dir);
-  expect_statements(slurp(path));
+  expect_statements(read_file(path));
   const YAML::Node imu0 = YAML::LoadFile(path)["imu0"];
   ASSERT_TRUE(imu0);
   EXPECT_EQ(imu0["model"].as<std::string>(), "scale-misalignment");
@@ -235,7 +216,7 @@ TEST(Exporters, KalibrRoundTrip) {
 TEST(Exporters, ImuTkRoundTrip) {
   TempDir dir;
   const std::string path = write(io::ExportFormat::ImuTk, dir);
-  expect_statements(slurp(path));
+  expect_statements(read_file(path));
   std::ifstream file(path);
   double v[21];
   for (double& x : v) file >> x;
@@ -281,7 +262,7 @@ TEST(Exporters, Px4LeftoverBoundsError) {
   TempDir dir;
   io::ExportText t;
   const std::string path = write(io::ExportFormat::Px4, dir, &t);
-  const std::string text = slurp(path);
+  const std::string text = read_file(path);
   expect_statements(text);
   std::map<std::string, double> params;
   std::istringstream lines(text);
@@ -311,7 +292,7 @@ TEST(Exporters, ArdupilotLeftoverBoundsError) {
   TempDir dir;
   io::ExportText t;
   const std::string path = write(io::ExportFormat::Ardupilot, dir, &t);
-  const std::string text = slurp(path);
+  const std::string text = read_file(path);
   expect_statements(text);
   std::map<std::string, double> params;
   std::istringstream lines(text);
@@ -383,6 +364,38 @@ TEST(Exporters, FromStoredResultFile) {
   const YAML::Node imu0 = YAML::Load(io::export_text(io::ExportFormat::Kalibr, c).text)["imu0"];
   EXPECT_DOUBLE_EQ(imu0["accelerometer_noise_density"].as<double>(), report.noise->density.maxCoeff());
   EXPECT_NEAR(imu0["update_rate"].as<double>(), report.noise->rate_hz, 1e-9);
+}
+
+// A result that fails the quality gate is refused in every format, from a report and from the
+// stored file alike, with the gate's reasons in the message.
+TEST(Exporters, RefuseAResultThatFailsTheQualityGate) {
+  TempDir dir;
+  CalibrationReport report;
+  report.base_fit = report.certificate = fixture().fit;
+  report.quality = Quality{false, {"reduced chi-square 812 is far above 1"}};
+  const std::string result = dir.file("intrinsics.yaml");
+  io::write_result_yaml(result, report, io::ResultContext{});
+  const io::StoredResult stored = io::read_result_file(result);
+  EXPECT_FALSE(stored.quality_pass);
+  for (const io::CalibrationToExport& c :
+       {io::calibration_to_export(report, "report"), io::calibration_to_export(stored, result)}) {
+    for (io::ExportFormat format : {io::ExportFormat::ImuCalib, io::ExportFormat::Imucal,
+                                    io::ExportFormat::Kalibr, io::ExportFormat::ImuTk,
+                                    io::ExportFormat::Px4, io::ExportFormat::Ardupilot}) {
+      try {
+        io::export_text(format, c);
+        ADD_FAILURE() << io::export_format_name(format) << " exported a failing result";
+      } catch (const io::IoError& e) {
+        EXPECT_NE(std::string(e.what()).find(
+                      "fails the quality gate (reduced chi-square 812 is far above 1)"),
+                  std::string::npos)
+            << e.what();
+      }
+    }
+  }
+  // The same result once it passes (the gate's verdict is the only difference) exports.
+  report.quality = Quality{};
+  EXPECT_NO_THROW(io::export_text(io::ExportFormat::ImuCalib, io::calibration_to_export(report, "r")));
 }
 
 TEST(Exporters, BadInputIsOneClearLine) {

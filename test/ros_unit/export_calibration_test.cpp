@@ -18,36 +18,15 @@
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/simulator.h"
 #include "accel_intrinsics/ros/offline_fit.h"
+#include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
 namespace fs = std::filesystem;
 
 namespace {
 
-class TempDir {
- public:
-  TempDir() {
-    char templ[] = "/tmp/export_tool_XXXXXX";
-    path_ = ::mkdtemp(templ);
-  }
-  ~TempDir() {
-    if (std::getenv("KEEP_TEST_FILES") == nullptr) fs::remove_all(path_);
-  }
-  std::string file(const std::string& name) const { return path_ + "/" + name; }
-  int count() const {
-    return static_cast<int>(std::distance(fs::directory_iterator(path_), fs::directory_iterator()));
-  }
-
- private:
-  std::string path_;
-};
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using accel_intrinsics::test_support::read_file;
+using accel_intrinsics::test_support::TempDir;
 
 int lines(const std::string& text) { return static_cast<int>(std::count(text.begin(), text.end(), '\n')); }
 
@@ -83,13 +62,13 @@ TEST(OfflineFitExport, WritesEveryRequestedFormatWithTheResultsNumbers) {
   EXPECT_NE(err.str().find("offline_fit: note: px4 export: largest error left over all orientations"),
             std::string::npos)
       << err.str();
-  const nlohmann::json result = nlohmann::json::parse(slurp(args.json_out));
+  const nlohmann::json result = nlohmann::json::parse(read_file(args.json_out));
   const Eigen::Matrix3d P = rows_of(result.at("cross_sensitivity"));
   const YAML::Node calib = YAML::LoadFile(dir.file("calib.yaml"));
   for (int i = 0; i < 9; ++i) EXPECT_NEAR(calib["SM"][i].as<double>(), P(i / 3, i % 3), 1e-12);
-  EXPECT_NE(slurp(dir.file("calib.yaml")).find("offline_fit result of " + args.csv), std::string::npos);
+  EXPECT_NE(read_file(dir.file("calib.yaml")).find("offline_fit result of " + args.csv), std::string::npos);
   EXPECT_TRUE(YAML::LoadFile(dir.file("imu.yaml"))["imu0"]["accelerometers"]["M"]);
-  EXPECT_NE(slurp(dir.file("px4.params")).find("CAL_ACC0_ZSCALE"), std::string::npos);
+  EXPECT_NE(read_file(dir.file("px4.params")).find("CAL_ACC0_ZSCALE"), std::string::npos);
 }
 
 TEST(OfflineFitExport, BadSpecIsACommandLineErrorAndWritesNothing) {
@@ -105,7 +84,7 @@ TEST(OfflineFitExport, BadSpecIsACommandLineErrorAndWritesNothing) {
     EXPECT_EQ(ai::run_offline_fit(args, out, err), ai::kOfflineFitBadCommandLine) << spec;
     EXPECT_EQ(lines(err.str()), 1) << err.str();
     EXPECT_EQ(err.str().rfind("offline_fit: error: ", 0), 0u) << err.str();
-    EXPECT_EQ(dir.count(), 1) << "only the table: " << spec;
+    EXPECT_EQ(static_cast<int>(dir.entries().size()), 1) << "only the table: " << spec;
   }
 }
 
@@ -122,9 +101,31 @@ TEST(ExportCalibration, FromSavedResult) {
   EXPECT_EQ(ai::run_export_calibration(args, err), 0) << err.str();
   EXPECT_NE(err.str().find("export_calibration: note: ardupilot export: largest error"),
             std::string::npos);
-  const std::string text = slurp(args.out);
+  const std::string text = read_file(args.out);
   EXPECT_NE(text.find("INS_ACCSCAL_X,"), std::string::npos);
   EXPECT_NE(text.find("source result: " + fit.json_out), std::string::npos);
+}
+
+TEST(ExportCalibration, RefusesAResultThatFailsTheQualityGate) {
+  TempDir dir;
+  ai::OfflineFitArguments fit;
+  fit.csv = write_table(dir);
+  fit.json_out = dir.file("result.json");
+  std::ostringstream out, fit_err;
+  ASSERT_EQ(ai::run_offline_fit(fit, out, fit_err), 0) << fit_err.str();
+  // The same result as a run that failed the gate would have stored it.
+  nlohmann::json result = nlohmann::json::parse(read_file(fit.json_out));
+  result["quality"] = {{"pass", false}, {"reasons", {"reduced chi-square 812 is far above 1"}}};
+  std::ofstream(dir.file("failed.json")) << result.dump(2);
+
+  ai::ExportCalibrationArguments args{dir.file("failed.json"), "imu_calib", dir.file("calib.yaml")};
+  std::ostringstream err;
+  EXPECT_EQ(ai::run_export_calibration(args, err), 1);
+  EXPECT_EQ(lines(err.str()), 1) << err.str();
+  EXPECT_NE(err.str().find("fails the quality gate (reduced chi-square 812 is far above 1)"),
+            std::string::npos)
+      << err.str();
+  EXPECT_FALSE(fs::exists(args.out));
 }
 
 TEST(ExportCalibration, BadInputIsOneLineAndNoFile) {

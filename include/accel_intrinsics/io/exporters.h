@@ -66,6 +66,9 @@ struct CalibrationToExport {
   double rate_hz = kUnknown;
   std::string source;  // the result it came from (a path, or "calibration node run ...")
   std::string date;    // ISO 8601 UTC; empty: the time of the export
+  // Why the result fails the quality gate (core::Quality::summary); empty when it passes. A
+  // failing result is not a calibration: export_text refuses it, whoever asks.
+  std::string quality_failure;
 };
 
 CalibrationToExport calibration_to_export(const StoredResult& result, const std::string& source);
@@ -84,7 +87,7 @@ struct ExportText {
 };
 
 // Throws IoError when the calibration cannot be written in the format (singular or non-finite
-// S, unknown g).
+// S, unknown g) or when the result fails the quality gate.
 ExportText export_text(ExportFormat format, const CalibrationToExport& calibration);
 // export_text written atomically to `path`; throws IoError naming the path.
 ExportText write_export(const std::string& path, ExportFormat format,

@@ -116,6 +116,9 @@ struct StoredResult {
   // uncertainty_budget.expanded when the result has one (comparisons, certificates).
   std::optional<core::IntrinsicValues> expanded;  // angles in radians
   double coverage_factor = 2.0;
+  // The quality gate (DESIGN.md section 5); a file written before the gate existed passes.
+  bool quality_pass = true;
+  std::vector<std::string> quality_reasons;
 };
 
 // Reads a result written by write_result_json/yaml, by offline_fit before them, or an old node
