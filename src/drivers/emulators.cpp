@@ -115,6 +115,24 @@ void DeviceEmulator::reply(const std::string& text) {
   }
 }
 
+void DeviceEmulator::on_bytes(const std::string& bytes) {
+  for (const char c : bytes) {
+    take_line_byte(c);
+    if (vanished()) return;
+  }
+}
+
+void DeviceEmulator::take_line_byte(char c) {
+  if (c == '\n') {
+    const std::string line = line_;
+    line_.clear();
+    log_command(line);
+    on_line(line);
+  } else if (c != '\r') {
+    line_ += c;
+  }
+}
+
 void DeviceEmulator::log_command(const std::string& command) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -190,7 +208,7 @@ void GrblEmulator::soft_reset() {
     for (EmulatedAxis& a : axes_) a.halt(t);
     state_ = options_.needs_homing && state_ == "Home" ? "Alarm" : "Idle";
   }
-  line_.clear();
+  discard_partial_line();
   homing_done_ = alarm_at_ = -1.0;
   reply("\r\nGrbl 1.1h ['$' for help]\r\n");
   if (state_ == "Alarm") reply("[MSG:'$H'|'$X' to unlock]\r\n");
@@ -223,14 +241,9 @@ void GrblEmulator::on_bytes(const std::string& bytes) {
     } else if (c == '~') {
       log_command("~");
       if (state_ == "Hold:0") state_ = "Idle";
-    } else if (c == '\n') {
-      const std::string line = line_;
-      line_.clear();
-      log_command(line);
-      on_line(line);
+    } else {
+      take_line_byte(c);
       if (vanished()) return;
-    } else if (c != '\r') {
-      line_ += c;
     }
   }
 }
@@ -356,20 +369,6 @@ Smc100Emulator::Smc100Emulator(const EmulatorOptions& options) : DeviceEmulator(
     Controller c;
     c.state = options_.needs_homing ? 0x0A : 0x32;
     controllers_[a] = c;
-  }
-}
-
-void Smc100Emulator::on_bytes(const std::string& bytes) {
-  for (const char c : bytes) {
-    if (c == '\n') {
-      const std::string line = line_;
-      line_.clear();
-      log_command(line);
-      on_line(line);
-      if (vanished()) return;
-    } else if (c != '\r') {
-      line_ += c;
-    }
   }
 }
 

@@ -58,8 +58,13 @@ class DeviceEmulator {
 
  protected:
   using Clock = std::chrono::steady_clock;
-  // Bytes from the host.
-  virtual void on_bytes(const std::string& bytes) = 0;
+  // Bytes from the host; by default split into lines (LF ends one, CR is ignored) for on_line.
+  virtual void on_bytes(const std::string& bytes);
+  // One line from the host, logged as a command before this is called.
+  virtual void on_line(const std::string& line) = 0;
+  // Adds a byte to the line being received; a LF hands it to on_line.
+  void take_line_byte(char c);
+  void discard_partial_line() { line_.clear(); }  // a reset drops what was half received
   // Timed behaviour (motion, homing, injected alarms).
   virtual void on_time() = 0;
   void reply(const std::string& text);  // raw bytes to the host (nothing when silenced)
@@ -76,6 +81,7 @@ class DeviceEmulator {
   Clock::time_point start_;
   mutable std::mutex mutex_;
   std::vector<std::string> commands_;
+  std::string line_;  // received since the last LF
 };
 
 // An axis moving linearly at rate_deg_s.
@@ -92,18 +98,17 @@ class GrblEmulator : public DeviceEmulator {
   explicit GrblEmulator(const EmulatorOptions& options);
 
  protected:
-  void on_bytes(const std::string& bytes) override;
+  void on_bytes(const std::string& bytes) override;  // real-time commands, then lines
   void on_time() override;
+  void on_line(const std::string& line) override;
 
  private:
-  void on_line(const std::string& line);
   void soft_reset();
   void status_report();
   void move(const std::string& line);
   bool running(double t) const;
 
   EmulatedAxis axes_[3];
-  std::string line_;
   std::string state_ = "Idle";
   double homing_done_ = -1.0;  // reply "ok" to $H then
   double alarm_at_ = -1.0;     // injected alarm then
@@ -116,8 +121,8 @@ class Smc100Emulator : public DeviceEmulator {
   explicit Smc100Emulator(const EmulatorOptions& options);
 
  protected:
-  void on_bytes(const std::string& bytes) override;
   void on_time() override;
+  void on_line(const std::string& line) override;
 
  private:
   struct Controller {
@@ -129,10 +134,7 @@ class Smc100Emulator : public DeviceEmulator {
     double alarm_at = -1.0;
     EmulatedAxis axis;
   };
-  void on_line(const std::string& line);
-
   std::map<int, Controller> controllers_;
-  std::string line_;
   int moves_ = 0;
   bool garbage_pending_ = false;
 };
