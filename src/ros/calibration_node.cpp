@@ -327,6 +327,10 @@ void CalibrationNode::write_exports(const core::CalibrationReport& report) {
   if (options_.exports.empty()) return;
   const io::CalibrationToExport calibration =
       io::calibration_to_export(report, files_.result_path());
+  if (!calibration.quality_failure.empty()) {
+    ROS_ERROR("calibration: no exports written: the result fails the quality gate");
+    return;
+  }
   for (io::ExportFormat format : options_.exports) {
     const std::string path = files_.file_path(io::export_file_name(format));
     try {
