@@ -4,7 +4,8 @@
 # of the multithreaded calibration node (IMU callbacks on the transport threads with
 # immediate_imu, the fit worker thread, services). A target that does not build fails the run;
 # so does any ThreadSanitizer report ("WARNING: ThreadSanitizer", in a log or a report file of any
-# process, nodes included). Ends with one line "N passed, N failed" (gtest cases and rostests,
+# process, nodes included; tools/tsan.supp suppresses reports inside the uninstrumented ROS
+# libraries). Ends with one line "N passed, N failed" (gtest cases and rostests,
 # plus one failure per binary or rostest with a report).
 #
 # Environment:
@@ -28,6 +29,8 @@ mkdir -p "$log_dir/xml" "$log_dir/reports"
 targets=()
 [ "${ACCEL_TSAN_UNIT:-1}" != 0 ] && targets+=(ros_unit_tests)
 for t in $rostests; do targets+=("rostest_$t"); done
+# The Python messages: rostests run scripts/supervise.
+[ -n "$rostests" ] && targets+=(accel_intrinsics_generate_messages_py)
 if [ ${#targets[@]} = 0 ]; then
   echo "[tsan] nothing to run"
   echo "0 passed, 1 failed"
@@ -46,7 +49,10 @@ source_workspace
 # log_path: every process (the test binaries and the nodes they or roslaunch start) writes its
 # reports to a file of its own, so none is lost in a node's log. second_deadlock_stack: both
 # stacks of a lock-order inversion.
-export TSAN_OPTIONS="log_path=$log_dir/reports/tsan:second_deadlock_stack=1:history_size=4:${TSAN_OPTIONS:-}"
+# suppressions: tools/tsan.supp (reports inside the uninstrumented ROS libraries only).
+# exitcode=0: a report does not change exit statuses (tests that check a node's exit status
+# stay meaningful); reports are counted from the files.
+export TSAN_OPTIONS="log_path=$log_dir/reports/tsan:second_deadlock_stack=1:history_size=4:exitcode=0:suppressions=$REPO_DIR/tools/tsan.supp:${TSAN_OPTIONS:-}"
 export ROS_LOG_DIR="$log_dir/ros_log"
 
 extra_failed=0
