@@ -13,14 +13,15 @@
 #                      workspace is never reconfigured with sanitizer flags.
 #   ACCEL_JOBS         parallel build jobs (default: all cores)
 #   GTEST_FILTER       gtest filter for ros_unit_tests (default: all)
-#   TSAN_ROSTESTS      rostests to run (default "calibration_node analysis_node"; "" = none)
+#   TSAN_ROSTESTS      rostests to run (default "calibration_node analysis_node kill_in_dwell";
+#                      "" = none)
 #   ACCEL_TSAN_UNIT=0  skip ros_unit_tests
 #   ACCEL_CMAKE_ARGS   extra cmake arguments (appended after -DACCEL_TSAN=ON)
 # Example: ACCEL_TSAN_WS=/tmp/ws_tsan ACCEL_JOBS=2 tools/tsan.sh
 export ACCEL_WS="${ACCEL_TSAN_WS:-$HOME/accel_ws_tsan}"
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 export ACCEL_CMAKE_ARGS="-DACCEL_TSAN=ON -DACCEL_SANITIZE=OFF ${ACCEL_CMAKE_ARGS:-}"
-rostests="${TSAN_ROSTESTS-calibration_node analysis_node}"
+rostests="${TSAN_ROSTESTS-calibration_node analysis_node kill_in_dwell}"
 
 log_dir="$ACCEL_WS/tsan"
 rm -rf "$log_dir"
