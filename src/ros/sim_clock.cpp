@@ -27,17 +27,37 @@ SimClockOptions SimClockOptions::load(const ros::NodeHandle& pnh) {
 SimClock::SimClock(ros::NodeHandle nh, const SimClockOptions& options)
     : nh_(nh), options_(options) {
   pub_ = nh_.advertise<rosgraph_msgs::Clock>(names::kClockTopic, 10);
+  pause_srv_ = ros::NodeHandle("~").advertiseService("pause", &SimClock::on_pause, this);
+}
+
+double SimClock::now_s() const {
+  const ros::WallTime wall = paused_ ? paused_since_ : ros::WallTime::now();
+  return options_.start_s + options_.time_scale * ((wall - wall0_).toSec() - paused_wall_s_);
+}
+
+bool SimClock::on_pause(std_srvs::SetBool::Request& req, std_srvs::SetBool::Response& res) {
+  if (req.data && !paused_) {
+    paused_since_ = ros::WallTime::now();
+    paused_ = true;
+  } else if (!req.data && paused_) {
+    paused_wall_s_ += (ros::WallTime::now() - paused_since_).toSec();
+    paused_ = false;
+  }
+  res.success = true;
+  res.message = std::string(paused_ ? "paused" : "running") + " at " + std::to_string(now_s()) + " s";
+  ROS_INFO("sim_clock: %s", res.message.c_str());
+  return true;
 }
 
 void SimClock::run() {
   ROS_INFO("sim_clock: /clock from %.1f s at %.2fx real time, %.0f Hz", options_.start_s,
            options_.time_scale, options_.rate_hz);
-  const ros::WallTime wall0 = ros::WallTime::now();
+  wall0_ = ros::WallTime::now();
   ros::WallRate rate(options_.rate_hz);
   while (ros::ok()) {
-    const double elapsed = (ros::WallTime::now() - wall0).toSec();
+    ros::spinOnce();  // ~pause
     rosgraph_msgs::Clock msg;
-    msg.clock.fromSec(options_.start_s + options_.time_scale * elapsed);
+    msg.clock.fromSec(now_s());
     pub_.publish(msg);
     rate.sleep();
   }

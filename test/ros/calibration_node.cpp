@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <mutex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -35,6 +36,10 @@ struct Expected {
 
 class CalibrationNodeTest : public ::testing::Test {
  protected:
+  // The status subscription goes first: its callbacks (on the spinner thread) write status_,
+  // which the members' destruction would otherwise free under them (ThreadSanitizer).
+  ~CalibrationNodeTest() override { status_sub_.shutdown(); }
+
   void SetUp() override {
     ros::NodeHandle pnh("~");
     ASSERT_TRUE(pnh.getParam("output_dir", output_dir_));
@@ -75,7 +80,14 @@ class CalibrationNodeTest : public ::testing::Test {
   void on_status(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
     std::map<std::string, std::string> values;
     for (const auto& kv : msg->values) values[kv.key] = kv.value;
+    std::lock_guard<std::mutex> lock(status_mutex_);
     status_ = values;
+  }
+  // A copy of the latest status (written by the spinner thread; ThreadSanitizer found the test
+  // body reading the map unlocked while a callback replaced it).
+  std::map<std::string, std::string> status() {
+    std::lock_guard<std::mutex> lock(status_mutex_);
+    return status_;
   }
 
   void command(double t, int phase, int step, std::uint8_t state) {
@@ -117,6 +129,7 @@ class CalibrationNodeTest : public ::testing::Test {
   ros::Publisher clock_pub_, command_pub_, imu_pub_;
   ros::Subscriber status_sub_;
   ros::ServiceClient get_, reset_;
+  std::mutex status_mutex_;
   std::map<std::string, std::string> status_;
   std::string output_dir_;
   double g_ = 9.80665, tolerance_ = 1e-9;
@@ -264,21 +277,23 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
 
   // Counters on calibration/status (latched, republished with the result).
   const ros::WallTime status_deadline = ros::WallTime::now() + ros::WallDuration(10.0);
-  while (status_["state"] != "RESULT" && ros::WallTime::now() < status_deadline) {
+  std::map<std::string, std::string> st = status();
+  while (st["state"] != "RESULT" && ros::WallTime::now() < status_deadline) {
     ros::WallDuration(0.05).sleep();
+    st = status();
   }
-  ASSERT_EQ(status_["state"], "RESULT");
-  EXPECT_EQ(std::stoi(status_["samples_used"]), 10 * dwell_samples);
-  EXPECT_EQ(std::stoi(status_["dropped_outside_dwell"]),
+  ASSERT_EQ(st["state"], "RESULT");
+  EXPECT_EQ(std::stoi(st["samples_used"]), 10 * dwell_samples);
+  EXPECT_EQ(std::stoi(st["dropped_outside_dwell"]),
             before_samples + moving_samples + after_samples);
-  EXPECT_EQ(std::stoi(status_["dropped_non_finite"]), 1);
-  EXPECT_EQ(std::stoi(status_["dropped_backwards"]), 1);
-  EXPECT_EQ(std::stoi(status_["dropped_late"]), 0);
-  EXPECT_EQ(std::stoi(status_["commands_out_of_order"]), 1);
-  EXPECT_EQ(std::stoi(status_["commands_rejected"]), 2);
-  EXPECT_EQ(std::stoi(status_["dwells_x"]), 3);
-  EXPECT_EQ(std::stoi(status_["dwells_y"]), 3);
-  EXPECT_EQ(std::stoi(status_["dwells_z"]), 4);
+  EXPECT_EQ(std::stoi(st["dropped_non_finite"]), 1);
+  EXPECT_EQ(std::stoi(st["dropped_backwards"]), 1);
+  EXPECT_EQ(std::stoi(st["dropped_late"]), 0);
+  EXPECT_EQ(std::stoi(st["commands_out_of_order"]), 1);
+  EXPECT_EQ(std::stoi(st["commands_rejected"]), 2);
+  EXPECT_EQ(std::stoi(st["dwells_x"]), 3);
+  EXPECT_EQ(std::stoi(st["dwells_y"]), 3);
+  EXPECT_EQ(std::stoi(st["dwells_z"]), 4);
 
   // Reset: the result is gone and the service says what is missing again.
   std_srvs::Trigger reset;

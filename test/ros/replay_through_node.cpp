@@ -70,7 +70,10 @@ void write_simulated_bag(const std::string& path, double tail_s) {
 TEST(ReplayThroughNode, ReplayLaunchGivesOfflineResult) {
   ros::NodeHandle pnh("~");
   std::string bag, temp_dir;
-  double rate = 4.0, timeout_s = 150.0, tail_s = 3.0;
+  // The node's reorder window (simulated s): wide enough that no message of the replay arrives
+  // after it on a loaded machine (at `rate`, window / rate of wall time). offline_fit reads the
+  // bag in stamp order, so any window that drops nothing gives its result.
+  double rate = 2.0, timeout_s = 150.0, tail_s = 3.0, window_s = 5.0;
   if (!pnh.getParam("bag", bag)) {
     // A directory of this run's own: parallel or repeated runs never share a bag.
     const char* tmp = std::getenv("TMPDIR");
@@ -82,6 +85,7 @@ TEST(ReplayThroughNode, ReplayLaunchGivesOfflineResult) {
   pnh.getParam("rate", rate);
   pnh.getParam("timeout_s", timeout_s);
   pnh.getParam("tail_after_done_s", tail_s);
+  pnh.getParam("reorder_window_s", window_s);
   write_simulated_bag(bag, tail_s);
 
   const oc::ToolRun r = oc::run_offline_fit({"--bag", bag, "--json", bag + ".json"}, bag + ".err");
@@ -96,8 +100,9 @@ TEST(ReplayThroughNode, ReplayLaunchGivesOfflineResult) {
     ::setpgid(0, 0);
     const std::string bag_arg = "bag:=" + bag;
     const std::string rate_arg = "rate:=" + std::to_string(rate);
+    const std::string window_arg = "reorder_window_s:=" + std::to_string(window_s);
     ::execlp("roslaunch", "roslaunch", "accel_intrinsics", "replay.launch", bag_arg.c_str(), rate_arg.c_str(),
-             "output:=log", static_cast<char*>(nullptr));
+             window_arg.c_str(), "output:=log", static_cast<char*>(nullptr));
     ::_exit(127);
   }
   accel_intrinsics::IntrinsicResult online;

@@ -1,9 +1,13 @@
 // A clock for the simulated stand: publishes /clock (rosgraph_msgs/Clock) running time_scale
 // times faster than the wall clock, so that with use_sim_time the whole stand (controller,
-// accelerometer, calibration) runs faster than real time.
+// accelerometer, calibration) runs faster than real time. The service ~pause (std_srvs/SetBool)
+// holds simulated time (data: true; /clock keeps coming, with the held time) and lets it run on
+// from there (false): the stand stops wherever it is, e.g. for a test that restarts a node
+// inside a dwell.
 #pragma once
 
 #include <ros/ros.h>
+#include <std_srvs/SetBool.h>
 
 namespace accel_intrinsics {
 
@@ -23,9 +27,17 @@ class SimClock {
   void run();
 
  private:
+  bool on_pause(std_srvs::SetBool::Request& req, std_srvs::SetBool::Response& res);
+  double now_s() const;  // simulated time now
+
   ros::NodeHandle nh_;
   SimClockOptions options_;
   ros::Publisher pub_;
+  ros::ServiceServer pause_srv_;
+  ros::WallTime wall0_;
+  double paused_wall_s_ = 0.0;  // wall time spent paused before the current pause
+  bool paused_ = false;
+  ros::WallTime paused_since_;
 };
 
 }  // namespace accel_intrinsics
