@@ -12,6 +12,7 @@
 #include <sstream>
 #include <string>
 
+#include "accel_intrinsics/core/calibration_run.h"
 #include "accel_intrinsics/core/discrepancy.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/fit.h"
@@ -226,6 +227,59 @@ TEST(Temperature, AssemblerRecordsTheMeanReadingOfEachDwell) {
   }
   EXPECT_EQ(assembler.counters().temperatures_used, used);
   EXPECT_EQ(assembler.counters().temperatures_dropped, rec.temperatures.size() - used);
+}
+
+// The calibration node's core: temperatures on the IMU's clock (imu_time_offset_s shifts them
+// like the samples) reach the accepted rows and the table it fits.
+TEST(Temperature, CalibrationRunRecordsDwellTemperatures) {
+  SimulationOptions so = warm_up_and_cool_down(23, 3.0, 4);
+  so.rate_hz = 50.0;
+  so.temperature.rate_hz = 5.0;
+  const Recording rec = simulate_recording(so);
+  const double offset_s = 2.0;  // the IMU clock runs 2 s behind the gimbal's
+  RunOptions options;
+  options.steps = 4;
+  options.imu_time_offset_s = offset_s;
+  CalibrationRun run(options);
+  std::vector<DwellRecord> accepted;
+  PositionTable fitted;
+  auto take = [&](const RunActions& actions) {
+    for (const RunAction& a : actions) {
+      if (a.kind == RunAction::Kind::DwellAccepted) accepted.push_back(a.row);
+      if (a.kind == RunAction::Kind::FitNow) fitted = a.table;
+    }
+  };
+  std::size_t c = 0, k = 0;
+  for (const ImuSample& sample : rec.samples) {
+    while (c < rec.commands.size() && rec.commands[c].stamp_s <= sample.stamp_s)
+      take(run.on_command(rec.commands[c++]));
+    while (k < rec.temperatures.size() && rec.temperatures[k].stamp_s <= sample.stamp_s) {
+      TemperatureSample shifted = rec.temperatures[k++];
+      shifted.stamp_s -= offset_s;
+      take(run.on_temperature(shifted));
+    }
+    ImuSample shifted = sample;
+    shifted.stamp_s -= offset_s;
+    take(run.on_sample(shifted));
+  }
+  while (c < rec.commands.size()) take(run.on_command(rec.commands[c++]));
+  for (double t = 0.0; t < 5.0 && fitted.rows.empty(); t += 0.05)
+    take(run.tick(rec.samples.back().stamp_s + t));
+  ASSERT_EQ(accepted.size(), 12u);
+  ASSERT_EQ(fitted.rows.size(), 12u);
+  for (std::size_t i = 0; i < accepted.size(); ++i) {
+    double sum = 0.0;
+    int n = 0;
+    for (const TemperatureSample& r : rec.temperatures) {
+      if (r.stamp_s >= accepted[i].t_start_s && r.stamp_s < accepted[i].t_end_s) {
+        sum += r.temperature_c;
+        ++n;
+      }
+    }
+    ASSERT_GT(n, 0);
+    EXPECT_NEAR(accepted[i].temperature_c, sum / n, 1e-12) << i;
+    EXPECT_EQ(fitted.rows[i].temperature_c, accepted[i].temperature_c) << i;
+  }
 }
 
 // ---- Fit preconditions
