@@ -9,9 +9,11 @@
 #include <unistd.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -132,10 +134,12 @@ std::vector<HandDwell> write_run(const std::string& path, bool with_temperature,
 }
 
 int run(const std::vector<std::string>& bags, const std::string& csv_out, std::string* err_text,
-        const std::string& temperature_topic = "") {
+        const std::string& temperature_topic = "", const std::string& json_out = "",
+        std::string* out_text = nullptr) {
   ai::OfflineFitArguments args;
   args.bags = bags;
   args.csv_out = csv_out;
+  args.json_out = json_out;
   if (!temperature_topic.empty()) {
     args.temperature_topic = temperature_topic;
     args.temperature_topic_given = true;
@@ -143,6 +147,7 @@ int run(const std::vector<std::string>& bags, const std::string& csv_out, std::s
   std::ostringstream out, err;
   const int status = ai::run_offline_fit(args, out, err);
   *err_text = err.str();
+  if (out_text) *out_text = out.str();
   return status;
 }
 
@@ -150,9 +155,29 @@ TEST(OfflineFitTemperature, DwellMeansOfTheTemperatureTopicReachThePositionTable
   TempDir dir;
   const std::vector<HandDwell> dwells = write_run(dir.file("run.bag"), true);
   std::string err;
-  ASSERT_EQ(run({dir.file("run.bag")}, dir.file("table.csv"), &err), 0) << err;
+  std::string out;
+  ASSERT_EQ(
+      run({dir.file("run.bag")}, dir.file("table.csv"), &err, "", dir.file("result.json"), &out), 0)
+      << err;
   EXPECT_EQ(first_line(dir.file("table.csv")),
             std::string(core::kPositionTableHeader) + core::kTemperatureColumn);
+  // The result states T_ref (the mean of the dwell means) and the range.
+  double sum = 0.0, lo = 1e9, hi = -1e9;
+  for (const HandDwell& d : dwells) {
+    double m = 0.0;
+    for (double r : d.readings) m += r / d.readings.size();
+    sum += m;
+    lo = std::min(lo, m);
+    hi = std::max(hi, m);
+  }
+  std::ifstream json_in(dir.file("result.json"));
+  const nlohmann::json j = nlohmann::json::parse(json_in);
+  ASSERT_TRUE(j.contains("temperature")) << j.dump();
+  EXPECT_NEAR(j["temperature"]["reference_c"].get<double>(), sum / dwells.size(), 1e-9);
+  EXPECT_NEAR(j["temperature"]["min_c"].get<double>(), lo, 1e-12);
+  EXPECT_NEAR(j["temperature"]["max_c"].get<double>(), hi, 1e-12);
+  EXPECT_EQ(j["temperature"]["dwells_with_temperature"].get<std::size_t>(), dwells.size());
+  EXPECT_NE(out.find("S and O at T_ref"), std::string::npos) << out;
   const core::PositionTable table = core::read_position_table_file(dir.file("table.csv"));
   ASSERT_EQ(table.rows.size(), dwells.size());
   for (std::size_t i = 0; i < dwells.size(); ++i) {
@@ -206,6 +231,9 @@ TEST(OfflineFitTemperature, BagWithoutTemperatureStillFitsAndNamedTopicIsRequire
   EXPECT_EQ(first_line(dir.file("table.csv")), core::kPositionTableHeader);
   const core::PositionTable table = core::read_position_table_file(dir.file("table.csv"));
   EXPECT_EQ(core::rows_with_temperature(table), 0u);
+  ASSERT_EQ(run({dir.file("run.bag")}, "", &err, "", dir.file("plain.json")), 0) << err;
+  std::ifstream json_in(dir.file("plain.json"));
+  EXPECT_FALSE(nlohmann::json::parse(json_in).contains("temperature"));
 
   // Asked for by name: its absence is an error that names it.
   EXPECT_EQ(run({dir.file("run.bag")}, dir.file("t2.csv"), &err, "imu/temperature"), 1);
