@@ -1,6 +1,8 @@
 #include "accel_intrinsics/core/calibrate.h"
 
+#include <algorithm>
 #include <exception>
+#include <limits>
 
 namespace accel_intrinsics {
 namespace core {
@@ -41,9 +43,26 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
 
 }  // namespace
 
+std::optional<RunTemperature> run_temperature(const PositionTable& table) {
+  RunTemperature t;
+  t.dwells = table.rows.size();
+  t.dwells_with_temperature = rows_with_temperature(table);
+  if (t.dwells_with_temperature == 0) return std::nullopt;
+  t.reference_c = reference_temperature_c(table);
+  t.min_c = std::numeric_limits<double>::infinity();
+  t.max_c = -t.min_c;
+  for (const DwellRecord& row : table.rows) {
+    if (!row.has_temperature()) continue;
+    t.min_c = std::min(t.min_c, row.temperature_c);
+    t.max_c = std::max(t.max_c, row.temperature_c);
+  }
+  return t;
+}
+
 CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
                             const CalibrateOptions& options) {
   CalibrationReport report = fit_and_analyze(table, raw, options);
+  report.temperature = run_temperature(table);
   report.output_unit = options.output_unit.empty() ? "m/s^2" : options.output_unit;
   QualityOptions quality = options.quality;
   quality.outputs_in_si = quality.outputs_in_si && report.output_unit == "m/s^2";

@@ -25,6 +25,8 @@ void add_counters(const AssemblerCounters& from, AssemblerCounters* to) {
   to->duplicates += from.duplicates;
   to->dropped_late += from.dropped_late;
   to->commands += from.commands;
+  to->temperatures_used += from.temperatures_used;
+  to->temperatures_dropped += from.temperatures_dropped;
   to->commands_out_of_order += from.commands_out_of_order;
   if (to->last_warning.empty()) to->last_warning = from.last_warning;
 }
@@ -208,6 +210,14 @@ RunActions CalibrationRun::on_sample(const ImuSample& received) {
       c.dropped_backwards != warned_.dropped_backwards || c.dropped_late != warned_.dropped_late) {
     warn_on_new_drops();
   }
+  return take_actions();
+}
+
+RunActions CalibrationRun::on_temperature(const TemperatureSample& received) {
+  TemperatureSample reading = received;
+  reading.stamp_s += options_.imu_time_offset_s;  // the IMU's clock
+  assembler_.add_temperature(reading);
+  if (!completed_rows_.empty()) process_completed_rows();
   return take_actions();
 }
 

@@ -51,15 +51,48 @@ std::array<bool, 3> two_way_phases(const std::vector<DwellGeometry>& geoms) {
   return {{up[0] && down[0], up[1] && down[1], up[2] && down[2]}};
 }
 
-// Whether the dwell means of a run with these two-way phases can show `effect` (its catalog
-// precondition): raw-stream effects never, two-way effects only on a two-way phase.
-bool screenable(const Effect& effect, const std::array<bool, 3>& two_way) {
+// What a run offers toward the catalog's preconditions.
+struct RunConditions {
+  std::array<bool, 3> two_way{{false, false, false}};
+  TemperatureCoverage temperature;
+};
+
+RunConditions run_conditions(const PositionTable& table, const std::vector<DwellGeometry>& geoms,
+                             double min_temperature_span_k) {
+  RunConditions c;
+  c.two_way = two_way_phases(geoms);
+  c.temperature = temperature_coverage(table, min_temperature_span_k);
+  return c;
+}
+
+// Whether the dwell means of a run can show `effect` (its catalog precondition): raw-stream
+// effects never, two-way effects only on a two-way phase, temperature effects only with varying
+// dwell temperatures.
+bool screenable(const Effect& effect, const RunConditions& run) {
   switch (effect_info(effect.kind).precondition) {
     case Precondition::None: return true;
-    case Precondition::TwoWaySweep: return two_way[effect.target];
+    case Precondition::TwoWaySweep: return run.two_way[effect.target];
     case Precondition::RawStreams: return false;
+    case Precondition::TemperatureVaries: return run.temperature.screenable;
   }
   return false;
+}
+
+// Why `effect` was not screened in this run: the catalog's note, with the run's reason.
+std::string not_screened_note(const Effect& effect, const RunConditions& run) {
+  std::string note = unmet_precondition_note(effect);
+  if (effect_info(effect.kind).precondition == Precondition::TemperatureVaries)
+    note += ": " + run.temperature.reason;
+  return note;
+}
+
+// Whether an unscreened effect may be the look-alike of a named one. A temperature that was
+// recorded in every dwell and stayed flat rules a temperature coefficient out as the cause of
+// drift; unrecorded temperatures do not.
+bool look_alike_possible(const Effect& unscreened, const RunConditions& run) {
+  if (effect_info(unscreened.kind).precondition == Precondition::TemperatureVaries)
+    return run.temperature.rows_with_temperature < run.temperature.rows;
+  return true;
 }
 
 // Standard errors of the dwell means, the weights of every fit.
@@ -285,6 +318,8 @@ void validate(const AnalysisOptions& options) {
     fail("local_gravity must be positive");
   if (!(options.alpha > 0.0 && options.alpha < 1.0)) fail("alpha must be in (0, 1)");
   if (options.max_effects < 0) fail("max_effects must be >= 0");
+  if (!(options.min_temperature_span_k >= 0.0) || !std::isfinite(options.min_temperature_span_k))
+    fail("min_temperature_span_k must be a non-negative number of K");
   if (options.monte_carlo_draws < 100) fail("monte_carlo_draws must be >= 100");
   if (!(options.ambiguity_correlation > 0.0 && options.ambiguity_correlation <= 1.0)) {
     fail("ambiguity_correlation must be in (0, 1]");
@@ -299,13 +334,42 @@ void validate(const AnalysisOptions& options) {
     fail("detection_power must be in (0, 1)");
 }
 
-std::vector<Effect> default_candidates(const PositionTable& table) {
-  const std::array<bool, 3> two_way = two_way_phases(dwell_geometries(table));
+TemperatureCoverage temperature_coverage(const PositionTable& table,
+                                         double min_temperature_span_k) {
+  TemperatureCoverage c;
+  c.rows = table.rows.size();
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const DwellRecord& row : table.rows) {
+    if (!row.has_temperature()) continue;
+    ++c.rows_with_temperature;
+    lo = std::min(lo, row.temperature_c);
+    hi = std::max(hi, row.temperature_c);
+  }
+  c.span_k = c.rows_with_temperature > 0 ? hi - lo : 0.0;
+  std::ostringstream why;
+  if (c.rows_with_temperature == 0) {
+    why << "no temperature was recorded";
+  } else if (c.rows_with_temperature < c.rows) {
+    why << "only " << c.rows_with_temperature << " of " << c.rows
+        << " dwells have a temperature (publish imu/temperature at least once per dwell)";
+  } else if (!(c.span_k >= min_temperature_span_k)) {
+    why << std::setprecision(3) << "the dwell temperatures span " << c.span_k
+        << " K, less than the " << min_temperature_span_k
+        << " K needed to see a coefficient (warm up or cool the DUT during the run)";
+  }
+  c.reason = why.str();
+  c.screenable = c.reason.empty();
+  return c;
+}
+
+std::vector<Effect> default_candidates(const PositionTable& table, double min_temperature_span_k) {
+  const RunConditions run =
+      run_conditions(table, dwell_geometries(table), min_temperature_span_k);
   std::vector<Effect> out;
   for (const EffectInfo& info : effect_catalog()) {
     for (int target : effect_targets(info.kind)) {
       const Effect effect{info.kind, target, 0.0};
-      if (screenable(effect, two_way)) out.push_back(effect);
+      if (screenable(effect, run)) out.push_back(effect);
     }
   }
   return out;
@@ -458,11 +522,12 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
   AnalysisResult result;
   result.local_gravity = options.local_gravity;
   const std::vector<DwellGeometry> geoms = dwell_geometries(table);
-  const std::array<bool, 3> two_way = two_way_phases(geoms);
+  const RunConditions run = run_conditions(table, geoms, options.min_temperature_span_k);
 
   // Candidate family.
-  std::vector<Effect> candidates =
-      options.candidates.empty() ? default_candidates(table) : options.candidates;
+  std::vector<Effect> candidates = options.candidates.empty()
+                                       ? default_candidates(table, options.min_temperature_span_k)
+                                       : options.candidates;
   {
     std::vector<Effect> kept;
     for (const Effect& c : candidates) {
@@ -472,7 +537,7 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
         throw std::invalid_argument("analysis: candidate " + c.name() + " has target index " +
                                     std::to_string(c.target) + "; expected 0..2");
       }
-      if (!screenable(c, two_way)) continue;
+      if (!screenable(c, run)) continue;
       if (contains_term(options.base_effects, c) || contains_term(kept, c)) continue;
       kept.push_back(c);
     }
@@ -482,8 +547,8 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
   for (const EffectInfo& info : effect_catalog()) {
     for (int target : effect_targets(info.kind)) {
       const Effect effect{info.kind, target, 0.0};
-      if (!screenable(effect, two_way))
-        result.not_screened.push_back(effect.label() + ": " + unmet_precondition_note(effect));
+      if (!screenable(effect, run))
+        result.not_screened.push_back(effect.label() + ": " + not_screened_note(effect, run));
     }
   }
   std::ostringstream gnote;
@@ -615,7 +680,7 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
     for (const EffectInfo& info : effect_catalog()) {
       if (!info.has_look_alike || info.same_as_when_unmet != chosen.effect.kind) continue;
       const Effect look_alike{info.kind, chosen.effect.target, 0.0};
-      if (screenable(look_alike, two_way)) continue;
+      if (screenable(look_alike, run) || !look_alike_possible(look_alike, run)) continue;
       Ambiguity same;
       same.named = chosen.effect.label();
       same.candidates = {chosen.effect.label(), look_alike.label()};

@@ -37,6 +37,8 @@ void DwellAssembler::reset() {
   have_moving_ = false;
   in_dwell_ = false;
   accumulator_.reset();
+  temperature_sum_c_ = 0.0;
+  temperature_count_ = 0;
   done_ = false;
   table_ = PositionTable();
   counters_ = AssemblerCounters();
@@ -54,7 +56,7 @@ void DwellAssembler::add_command(const GimbalEvent& event) {
     ++counters_.commands_out_of_order;
     counters_.last_warning = "gimbal command " + describe(event) + " arrived after its stamp was processed";
   }
-  Event e{event.stamp_s, next_sequence_++, true, event, ImuSample()};
+  Event e{event.stamp_s, next_sequence_++, true, event, ImuSample(), false, 0.0};
   push(e);
 }
 
@@ -67,7 +69,18 @@ void DwellAssembler::add_sample(const ImuSample& sample) {
     ++counters_.dropped_late;
     return;
   }
-  Event e{sample.stamp_s, next_sequence_++, false, GimbalEvent(), sample};
+  Event e{sample.stamp_s, next_sequence_++, false, GimbalEvent(), sample, false, 0.0};
+  push(e);
+}
+
+void DwellAssembler::add_temperature(const TemperatureSample& reading) {
+  if (!std::isfinite(reading.stamp_s) || !std::isfinite(reading.temperature_c) ||
+      reading.stamp_s < released_until_s_) {
+    ++counters_.temperatures_dropped;
+    return;
+  }
+  Event e{reading.stamp_s, next_sequence_++,       false, GimbalEvent(),
+          ImuSample(),     /*is_temperature=*/true, reading.temperature_c};
   push(e);
 }
 
@@ -99,6 +112,8 @@ void DwellAssembler::process(const Event& event) {
   if (event.is_command) {
     if (observe_command_) observe_command_(event.command);
     process_command(event.command);
+  } else if (event.is_temperature) {
+    process_temperature(event.stamp_s, event.temperature_c);
   } else {
     // Released in stamp order, so a sample with the stamp of the previous one is a copy (the
     // same values: a duplicated message, used once) or a conflict (a clock that went back).
@@ -144,6 +159,8 @@ void DwellAssembler::process_command(const GimbalEvent& command) {
       in_dwell_ = true;
       dwell_command_ = command;
       accumulator_.reset();
+      temperature_sum_c_ = 0.0;
+      temperature_count_ = 0;
       have_moving_ = false;
       break;
     case GimbalState::Done:
@@ -170,6 +187,16 @@ void DwellAssembler::process_sample(const ImuSample& sample) {
   ++counters_.samples_used;
 }
 
+void DwellAssembler::process_temperature(double stamp_s, double temperature_c) {
+  if (!in_dwell_ || stamp_s < dwell_command_.stamp_s + options_.settle_discard_s) {
+    ++counters_.temperatures_dropped;
+    return;
+  }
+  temperature_sum_c_ += temperature_c;
+  ++temperature_count_;
+  ++counters_.temperatures_used;
+}
+
 void DwellAssembler::close_dwell(double end_stamp_s) {
   in_dwell_ = false;
   if (accumulator_.count() == 0) {
@@ -188,6 +215,8 @@ void DwellAssembler::close_dwell(double end_stamp_s) {
   row.n = accumulator_.count();
   row.mean = accumulator_.mean();
   row.std = accumulator_.sample_std();
+  if (temperature_count_ > 0)
+    row.temperature_c = temperature_sum_c_ / static_cast<double>(temperature_count_);
   table_.rows.push_back(row);
   accumulator_.reset();
   if (on_dwell_) on_dwell_(row);

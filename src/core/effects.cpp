@@ -23,6 +23,12 @@ const std::vector<EffectInfo>& effect_catalog() {
       "a closing position at 360 deg (closing_position: true in config/protocol.yaml) "
       "separates an angle-scale error from an angle offset: it is the 0 deg position again, "
       "so an offset reads the same there while a scale error has grown to eps * 2 pi";
+  static const char* const kTemperatureVsDrift =
+      "a temperature that does not follow time separates a temperature coefficient of offset "
+      "from drift: let the DUT warm up and cool down again during the run, soak it at a second "
+      "temperature and repeat, or cycle the temperature in a chamber; while the temperature is "
+      "linear in time both terms are the same function of the dwell and no analysis can tell "
+      "them apart";
   static const char* const kDriftVsAny =
       "repeating the run in another phase order or with a closing position "
       "(closing_position: true in config/protocol.yaml) decouples time from position and "
@@ -128,6 +134,33 @@ const std::vector<EffectInfo>& effect_catalog() {
        true,
        EffectKind::AngleOffset,
        {{EffectKind::AngleOffset, kTwoWayVsOffset}},
+       nullptr},
+      {EffectKind::OffsetTemperatureCoefficient,
+       "offset_temperature_coefficient",
+       TargetKind::Accelerometer,
+       "(m/s^2)/K",
+       "R_s += c (T - T_ref), T the dwell's mean temperature, T_ref the run's mean",
+       false,
+       Precondition::TemperatureVaries,
+       "needs dwell temperatures that vary (imu/temperature, position table column "
+       "temperature_c)",
+       // Without recorded temperatures, a temperature that changed with time looks like drift.
+       true,
+       EffectKind::OffsetDrift,
+       {{EffectKind::OffsetDrift, kTemperatureVsDrift}},
+       nullptr},
+      {EffectKind::ScaleTemperatureCoefficient,
+       "scale_temperature_coefficient",
+       TargetKind::Accelerometer,
+       "1/K",
+       "R_s += c (T - T_ref) L_s, T the dwell's mean temperature, T_ref the run's mean",
+       false,
+       Precondition::TemperatureVaries,
+       "needs dwell temperatures that vary (imu/temperature, position table column "
+       "temperature_c)",
+       false,
+       EffectKind::ScaleTemperatureCoefficient,
+       {},
        nullptr},
   };
   return kCatalog;

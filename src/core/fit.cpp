@@ -279,6 +279,29 @@ void validate_effects(const std::vector<Effect>& effects, FitModel model,
                        "from angle_offset[" +
                        e.target_name() + "]");
     }
+    if (info.precondition == Precondition::TemperatureVaries) {
+      std::size_t missing = 0;
+      double lo = 0.0, hi = 0.0;
+      bool first = true;
+      for (const DwellGeometry& g : geoms) {
+        if (!g.has_temperature) {
+          ++missing;
+          continue;
+        }
+        lo = first ? g.temperature_offset_k : std::min(lo, g.temperature_offset_k);
+        hi = first ? g.temperature_offset_k : std::max(hi, g.temperature_offset_k);
+        first = false;
+      }
+      if (missing > 0)
+        throw FitError(e.label() + " needs the temperature of every dwell: " +
+                       std::to_string(missing) + " of " + std::to_string(geoms.size()) +
+                       " rows have none (record imu/temperature, or fill the position table's "
+                       "temperature_c column)");
+      if (!(hi > lo))
+        throw FitError(e.label() +
+                       " needs dwell temperatures that differ: every row has the same "
+                       "temperature, so the coefficient cannot be told from the offset");
+    }
     if (e.kind == EffectKind::OffsetDrift) {
       double lo = 0.0, hi = 0.0;
       for (std::size_t i = 0; i < geoms.size(); ++i) {

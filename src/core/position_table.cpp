@@ -39,14 +39,15 @@ Eigen::Vector3d DwellAccumulator::sample_std() const {
 const char* const kPositionTableHeader =
     "phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w";
 const char* const kDirectionColumns = ",f_x,f_y,f_z";
+const char* const kTemperatureColumn = ",temperature_c";
 
 namespace {
 
 constexpr int kColumns = 12;
-constexpr int kColumnsWithDirection = 15;
-const char* const kColumnNames[kColumnsWithDirection] = {
-    "phase", "step",   "angle_rad", "t_start", "t_end", "n",   "mean_u", "mean_v",
-    "mean_w", "std_u", "std_v",     "std_w",   "f_x",   "f_y", "f_z"};
+constexpr int kTemperatureName = 15;  // kColumnNames index of temperature_c, wherever it stands
+const char* const kColumnNames[16] = {
+    "phase",  "step",  "angle_rad", "t_start", "t_end", "n",   "mean_u", "mean_v",
+    "mean_w", "std_u", "std_v",     "std_w",   "f_x",   "f_y", "f_z",    "temperature_c"};
 
 std::string trim(const std::string& s) {
   const auto begin = s.find_first_not_of(" \t\r\n");
@@ -108,6 +109,8 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
   std::size_t line_number = 0;
   bool have_header = false;
   int columns = kColumns;
+  bool direction_columns = false;
+  int temperature_field = -1;  // index of temperature_c among the fields, -1 without
   while (std::getline(in, line)) {
     ++line_number;
     // A UTF-8 byte-order mark, as spreadsheet programs write, is not part of the header.
@@ -115,13 +118,20 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
     const std::string text = trim(line);
     if (text.empty() || text[0] == '#') continue;
     if (!have_header) {
-      if (text == std::string(kPositionTableHeader) + kDirectionColumns) {
-        columns = kColumnsWithDirection;
-      } else if (text != kPositionTableHeader) {
+      const std::string base = kPositionTableHeader;
+      if (text == base + kDirectionColumns) {
+        direction_columns = true;
+      } else if (text == base + kTemperatureColumn) {
+        temperature_field = kColumns;
+      } else if (text == base + kDirectionColumns + kTemperatureColumn) {
+        direction_columns = true;
+        temperature_field = kColumns + 3;
+      } else if (text != base) {
         fail(source_name, line_number,
              std::string("expected the header '") + kPositionTableHeader + "' (optionally + '" +
-                 kDirectionColumns + "')");
+                 kDirectionColumns + "', then optionally + '" + kTemperatureColumn + "')");
       }
+      columns = kColumns + (direction_columns ? 3 : 0) + (temperature_field >= 0 ? 1 : 0);
       have_header = true;
       continue;
     }
@@ -133,7 +143,7 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
     }
     DwellRecord row;
     // Known orientation: f_x,f_y,f_z all given (all empty: a gimbal row).
-    if (columns == kColumnsWithDirection) {
+    if (direction_columns) {
       const bool any = !trim(fields[12]).empty() || !trim(fields[13]).empty() ||
                        !trim(fields[14]).empty();
       if (any) {
@@ -180,6 +190,10 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
         fail(source_name, line_number,
              std::string("field ") + kColumnNames[9 + k] + " is negative");
     }
+    // An empty temperature_c: no temperature recorded during this dwell.
+    if (temperature_field >= 0 && !trim(fields[temperature_field]).empty())
+      row.temperature_c =
+          parse_double(fields[temperature_field], source_name, line_number, kTemperatureName);
     table.rows.push_back(row);
   }
   if (!have_header)
@@ -196,7 +210,8 @@ PositionTable read_position_table_file(const std::string& path) {
 
 namespace {
 
-void write_row(std::ostream& out, const DwellRecord& row, bool direction_columns) {
+void write_row(std::ostream& out, const DwellRecord& row, bool direction_columns,
+               bool temperature_column) {
   const auto precision = out.precision(std::numeric_limits<double>::max_digits10);
   out << (row.has_direction ? "-" : phase_name(row.phase)) << ',' << row.step << ','
       << row.angle_rad << ',' << row.t_start_s << ',' << row.t_end_s << ',' << row.n;
@@ -208,6 +223,10 @@ void write_row(std::ostream& out, const DwellRecord& row, bool direction_columns
       if (row.has_direction) out << row.direction(k);
     }
   }
+  if (temperature_column) {
+    out << ',';
+    if (row.has_temperature()) out << row.temperature_c;
+  }
   out << '\n';
   out.flush();
   out.precision(precision);
@@ -215,14 +234,16 @@ void write_row(std::ostream& out, const DwellRecord& row, bool direction_columns
 
 }  // namespace
 
-void write_position_row(std::ostream& out, const DwellRecord& row) {
-  write_row(out, row, row.has_direction);
+void write_position_row(std::ostream& out, const DwellRecord& row, bool temperature_column) {
+  write_row(out, row, row.has_direction, temperature_column);
 }
 
 void write_position_table(std::ostream& out, const PositionTable& table) {
   const bool directions = rows_with_direction(table) > 0;
-  out << kPositionTableHeader << (directions ? kDirectionColumns : "") << '\n';
-  for (const DwellRecord& row : table.rows) write_row(out, row, directions);
+  const bool temperatures = rows_with_temperature(table) > 0;
+  out << kPositionTableHeader << (directions ? kDirectionColumns : "")
+      << (temperatures ? kTemperatureColumn : "") << '\n';
+  for (const DwellRecord& row : table.rows) write_row(out, row, directions, temperatures);
 }
 
 void write_position_table_file(const std::string& path, const PositionTable& table) {
@@ -261,7 +282,25 @@ Eigen::Vector3d specific_force_direction(const DwellRecord& row) {
   return row.has_direction ? row.direction : in_plane_direction(row.phase, row.angle_rad);
 }
 
-DwellGeometry dwell_inputs(const DwellRecord& row, double time_origin_s, int approach) {
+double reference_temperature_c(const PositionTable& table) {
+  double sum = 0.0;
+  std::size_t n = 0;
+  for (const DwellRecord& row : table.rows) {
+    if (!row.has_temperature()) continue;
+    sum += row.temperature_c;
+    ++n;
+  }
+  return n > 0 ? sum / static_cast<double>(n) : std::numeric_limits<double>::quiet_NaN();
+}
+
+std::size_t rows_with_temperature(const PositionTable& table) {
+  std::size_t n = 0;
+  for (const DwellRecord& row : table.rows) n += row.has_temperature() ? 1 : 0;
+  return n;
+}
+
+DwellGeometry dwell_inputs(const DwellRecord& row, double time_origin_s, int approach,
+                           double reference_temperature_c) {
   DwellGeometry inputs;
   inputs.has_direction = row.has_direction;
   inputs.direction = row.direction;
@@ -269,17 +308,21 @@ DwellGeometry dwell_inputs(const DwellRecord& row, double time_origin_s, int app
   inputs.angle_rad = row.angle_rad;
   inputs.time_s = 0.5 * (row.t_start_s + row.t_end_s) - time_origin_s;
   inputs.approach = approach;
+  inputs.has_temperature = row.has_temperature() && std::isfinite(reference_temperature_c);
+  inputs.temperature_offset_k =
+      inputs.has_temperature ? row.temperature_c - reference_temperature_c : 0.0;
   return inputs;
 }
 
 std::vector<DwellGeometry> dwell_geometries(const PositionTable& table) {
   const double t0 = effective_time_origin(table);
+  const double t_ref = reference_temperature_c(table);
   std::vector<DwellGeometry> geometries;
   geometries.reserve(table.rows.size());
   ApproachTracker approach;
   for (const DwellRecord& row : table.rows) {
     const int a = row.has_direction ? +1 : approach.visit(row.phase, row.angle_rad);
-    geometries.push_back(dwell_inputs(row, t0, a));
+    geometries.push_back(dwell_inputs(row, t0, a, t_ref));
   }
   return geometries;
 }

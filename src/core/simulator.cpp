@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -31,6 +32,21 @@ void validate(const SimulationOptions& options) {
   if (!std::isfinite(options.local_gravity) || options.local_gravity <= 0.0) {
     throw std::invalid_argument("simulation: local_gravity must be positive");
   }
+  const TemperatureProfile& temp = options.temperature;
+  if (!std::isfinite(temp.start_c) || !std::isfinite(temp.rate_c_per_s) ||
+      !std::isfinite(temp.sine_amplitude_c)) {
+    throw std::invalid_argument(
+        "simulation: temperature start_c, rate_c_per_s and sine_amplitude_c must be finite");
+  }
+  if (!std::isfinite(temp.sine_period_s) || temp.sine_period_s <= 0.0) {
+    throw std::invalid_argument("simulation: temperature sine_period_s must be positive");
+  }
+  if (!std::isfinite(temp.noise_c) || temp.noise_c < 0.0) {
+    throw std::invalid_argument("simulation: temperature noise_c must be non-negative");
+  }
+  if (!std::isfinite(temp.rate_hz) || temp.rate_hz <= 0.0) {
+    throw std::invalid_argument("simulation: temperature rate_hz must be positive");
+  }
   if (options.rate_hz * options.protocol.dwell_s < 2.0) {
     throw std::invalid_argument(
         "simulation: dwell_s * rate_hz must give at least two samples per dwell");
@@ -55,6 +71,28 @@ double timing_lag_s(const Device& device) {
 }
 
 }  // namespace
+
+double TemperatureProfile::at(double t_s) const {
+  return start_c + rate_c_per_s * t_s + sine_amplitude_c * std::sin(2.0 * kPi * t_s / sine_period_s);
+}
+
+double TemperatureProfile::mean_over(double t0_s, double t1_s) const {
+  const double span = t1_s - t0_s;
+  if (!(span > 0.0)) return at(t0_s);
+  const double w = 2.0 * kPi / sine_period_s;
+  // Integral of sin(w t) over [t0, t1] = (cos(w t0) - cos(w t1)) / w.
+  return start_c + rate_c_per_s * 0.5 * (t0_s + t1_s) +
+         sine_amplitude_c * (std::cos(w * t0_s) - std::cos(w * t1_s)) / (w * span);
+}
+
+double simulated_reference_temperature_c(const SimulationOptions& options) {
+  const std::vector<ScheduledPosition> schedule = build_schedule(options.protocol);
+  if (schedule.empty()) return options.temperature.start_c;
+  double sum = 0.0;
+  for (const ScheduledPosition& p : schedule)
+    sum += options.temperature.mean_over(p.settled_s, p.dwell_end_s);
+  return sum / static_cast<double>(schedule.size());
+}
 
 GimbalPose gimbal_pose_at(const std::vector<ScheduledPosition>& schedule, double t_s) {
   GimbalPose pose;
@@ -111,6 +149,11 @@ PositionTable simulate_position_table(const SimulationOptions& options) {
   PositionTable table;
   table.time_origin_s = 0.0;
   table.rows.reserve(schedule.size());
+  // Temperature readings draw from their own stream, so the output noise of a seed stays the
+  // same whether a temperature is recorded or not.
+  const TemperatureProfile& temp = options.temperature;
+  std::mt19937_64 temperature_rng(options.seed ^ 0x7e3779b97f4a7c15ull);
+  const double t_ref = simulated_reference_temperature_c(options);
   for (const ScheduledPosition& position : schedule) {
     DwellRecord row;
     row.phase = position.phase;
@@ -119,7 +162,18 @@ PositionTable simulate_position_table(const SimulationOptions& options) {
     row.t_start_s = position.settled_s;
     row.t_end_s = position.dwell_end_s;
     row.n = samples_in_window(row.t_start_s, row.t_end_s, options.rate_hz);
-    const DwellGeometry geom = dwell_inputs(row, table.time_origin_s, position.approach);
+    // The true dwell-mean temperature drives the model; the row records the readings' mean.
+    row.temperature_c = temp.mean_over(row.t_start_s, row.t_end_s);
+    const DwellGeometry geom = dwell_inputs(row, table.time_origin_s, position.approach, t_ref);
+    row.temperature_c = std::numeric_limits<double>::quiet_NaN();
+    if (temp.recorded) {
+      const std::uint64_t readings = samples_in_window(row.t_start_s, row.t_end_s, temp.rate_hz);
+      if (readings > 0) {
+        row.temperature_c = geom.temperature_offset_k + t_ref +
+                            temp.noise_c / std::sqrt(static_cast<double>(readings)) *
+                                normal(temperature_rng);
+      }
+    }
     const Eigen::Vector3d truth = predict_outputs(options.truth, geom, options.local_gravity);
     const double n = static_cast<double>(row.n);
     for (int k = 0; k < 3; ++k) {
@@ -163,12 +217,25 @@ Recording simulate_recording(const SimulationOptions& options) {
   recording.commands.push_back(done);
 
   const double end_s = schedule.back().dwell_end_s;
+  const TemperatureProfile& temp = options.temperature;
+  const double t_ref = simulated_reference_temperature_c(options);
+  if (temp.recorded) {
+    std::mt19937_64 temperature_rng(options.seed ^ 0x7e3779b97f4a7c15ull);
+    const auto readings = static_cast<std::uint64_t>(std::floor(end_s * temp.rate_hz));
+    for (std::uint64_t k = 0; k <= readings; ++k) {
+      const double t_true = static_cast<double>(k) / temp.rate_hz;
+      recording.temperatures.push_back(
+          TemperatureSample{t_true + lag, temp.at(t_true) + temp.noise_c * normal(temperature_rng)});
+    }
+  }
   const auto count = static_cast<std::uint64_t>(std::floor(end_s * options.rate_hz));
   recording.samples.reserve(count + 1);
   for (std::uint64_t k = 0; k <= count; ++k) {
     const double t_true = static_cast<double>(k) / options.rate_hz;
     const GimbalPose pose = gimbal_pose_at(schedule, t_true);
-    const DwellGeometry geom = geometry_of(pose, t_true);
+    DwellGeometry geom = geometry_of(pose, t_true);
+    geom.has_temperature = true;
+    geom.temperature_offset_k = temp.at(t_true) - t_ref;
     ImuSample sample;
     sample.stamp_s = t_true + lag;  // timing_lag: the IMU stamps its samples late
     sample.outputs = predict_outputs(options.truth, geom, options.local_gravity);
@@ -184,14 +251,19 @@ Recording simulate_recording(const SimulationOptions& options) {
 }
 
 void feed_in_stamp_order(const Recording& recording, DwellAssembler* assembler) {
-  std::size_t c = 0;
+  std::size_t c = 0, k = 0;
   for (const ImuSample& sample : recording.samples) {
     while (c < recording.commands.size() && recording.commands[c].stamp_s <= sample.stamp_s) {
       assembler->add_command(recording.commands[c++]);
     }
+    while (k < recording.temperatures.size() &&
+           recording.temperatures[k].stamp_s <= sample.stamp_s) {
+      assembler->add_temperature(recording.temperatures[k++]);
+    }
     assembler->add_sample(sample);
   }
   while (c < recording.commands.size()) assembler->add_command(recording.commands[c++]);
+  while (k < recording.temperatures.size()) assembler->add_temperature(recording.temperatures[k++]);
   assembler->flush();
 }
 

@@ -35,6 +35,19 @@ void SimulatedAccelerometerOptions::validate() const {
     throw std::invalid_argument("quantization must be finite and >= 0");
   if (!std::isfinite(local_gravity) || local_gravity <= 0.0 || local_gravity > 100.0)
     throw std::invalid_argument("local_gravity must be in (0, 100] m/s^2");
+  if (!std::isfinite(temperature_reference_c))
+    throw std::invalid_argument("temperature/reference_c must be finite");
+  // The profile's own checks (simulator.h), with a run that satisfies the others.
+  core::SimulationOptions sim;
+  sim.temperature = temperature;
+  try {
+    core::validate(sim);
+  } catch (const std::invalid_argument& e) {
+    std::string what = e.what();
+    const std::string prefix = "simulation: temperature ";
+    if (what.compare(0, prefix.size(), prefix) == 0) what = "temperature/" + what.substr(prefix.size());
+    throw std::invalid_argument(what);
+  }
 }
 
 double SimulatedAccelerometerOptions::noise_std() const {
@@ -54,7 +67,10 @@ double SimulatedAccelerometerOptions::timing_lag_s() const {
 
 SimulatedAccelerometer::SimulatedAccelerometer(const SimulatedAccelerometerOptions& options,
                                                OrientationProvider orientation)
-    : options_(options), orientation_(std::move(orientation)), rng_(options.seed) {
+    : options_(options),
+      orientation_(std::move(orientation)),
+      rng_(options.seed),
+      temperature_rng_(options.seed ^ 0x7e3779b97f4a7c15ull) {
   options_.validate();
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) S_row_major_.push_back(options_.truth.S(r, c));
@@ -76,11 +92,14 @@ Eigen::Vector3d SimulatedAccelerometer::specific_force(const Eigen::Matrix3d& R_
   return R_world_dut.transpose() * Eigen::Vector3d(0.0, 0.0, options_.local_gravity);
 }
 
-Eigen::Vector3d SimulatedAccelerometer::outputs(const Eigen::Vector3d& f_dut, double time_s) const {
+Eigen::Vector3d SimulatedAccelerometer::outputs(const Eigen::Vector3d& f_dut, double time_s,
+                                                double temperature_offset_k) const {
   const double g = f_dut.norm();
   core::DwellGeometry geom;
   geom.phase = core::Phase::X;
   geom.time_s = time_s;
+  geom.has_temperature = true;
+  geom.temperature_offset_k = temperature_offset_k;
   if (g > 0.0) {
     geom.angle_rad = std::atan2(f_dut.y(), f_dut.z());
     values_.back() = std::asin(std::max(-1.0, std::min(1.0, f_dut.x() / g)));
@@ -109,7 +128,8 @@ void SimulatedAccelerometer::poll(double now_s, std::vector<core::ImuSample>* ou
       continue;
     }
     const double since_t0 = std::isfinite(time_origin_s_) ? t - time_origin_s_ : 0.0;
-    Eigen::Vector3d R_out = outputs(specific_force(R), since_t0);
+    Eigen::Vector3d R_out = outputs(specific_force(R), since_t0,
+                                    temperature_c(since_t0) - options_.temperature_reference_c);
     if (noise_std_ > 0.0) {
       for (int i = 0; i < 3; ++i) R_out(i) += noise_std_ * normal_(rng_);
     }
@@ -124,6 +144,23 @@ void SimulatedAccelerometer::poll(double now_s, std::vector<core::ImuSample>* ou
   }
 }
 
+void SimulatedAccelerometer::poll_temperatures(double now_s,
+                                               std::vector<core::TemperatureSample>* out) {
+  if (!options_.temperature.recorded) return;
+  const double period = 1.0 / options_.temperature.rate_hz;
+  if (next_temperature_index_ < 0)
+    next_temperature_index_ = static_cast<std::int64_t>(std::ceil(now_s / period - 1e-9));
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (int n = 0; n < 1000; ++n) {
+    const double t = static_cast<double>(next_temperature_index_) * period;
+    if (t > now_s) break;
+    ++next_temperature_index_;
+    const double since_t0 = std::isfinite(time_origin_s_) ? t - time_origin_s_ : 0.0;
+    out->push_back(core::TemperatureSample{
+        t + lag_s_, temperature_c(since_t0) + options_.temperature.noise_c * normal(temperature_rng_)});
+  }
+}
+
 double SimulatedAccelerometer::variance_per_axis() const {
   const double q = options_.quantization;
   return noise_std_ * noise_std_ + q * q / 12.0;
@@ -131,6 +168,7 @@ double SimulatedAccelerometer::variance_per_axis() const {
 
 void SimulatedAccelerometer::restart() {
   next_index_ = -1;
+  next_temperature_index_ = -1;
 }
 
 }  // namespace accel_intrinsics

@@ -25,12 +25,26 @@ void CheckpointFiles::append_row(const core::DwellRecord& row) {
     std::error_code ec;
     const bool has_content = std::filesystem::exists(table_path()) &&
                              std::filesystem::file_size(table_path(), ec) > 0 && !ec;
+    const bool continued = append_ && has_content;
+    temperature_column_ = row.has_temperature();
+    if (continued) {
+      std::ifstream existing(table_path());
+      std::string header;
+      std::getline(existing, header);
+      const std::string suffix = core::kTemperatureColumn;
+      while (!header.empty() && (header.back() == '\r' || header.back() == ' ')) header.pop_back();
+      temperature_column_ = header.size() >= suffix.size() &&
+                            header.compare(header.size() - suffix.size(), suffix.size(), suffix) == 0;
+    }
     table_.open(table_path(),
                 append_ ? std::ios::out | std::ios::app : std::ios::out | std::ios::trunc);
     if (!table_) throw IoError("cannot write '" + table_path() + "'");
-    if (!append_ || !has_content) table_ << core::kPositionTableHeader << '\n';
+    if (!continued)
+      table_ << core::kPositionTableHeader << (temperature_column_ ? core::kTemperatureColumn : "")
+             << '\n';
   }
-  core::write_position_row(table_, row);  // flushed: the checkpoint of this dwell
+  // flushed: the checkpoint of this dwell
+  core::write_position_row(table_, row, temperature_column_);
   if (!table_) throw IoError("cannot write '" + table_path() + "' (disk full?)");
 }
 

@@ -277,6 +277,14 @@ nlohmann::json result_document(const core::CalibrationReport& report,
     j["noise_density_std"] = accelerometer_object(report.noise->density_std);
     j["sample_rate_hz"] = number(report.noise->rate_hz);
   }
+  if (report.temperature) {
+    const core::RunTemperature& t = *report.temperature;
+    j["temperature"] = {{"reference_c", number(t.reference_c)},
+                        {"min_c", number(t.min_c)},
+                        {"max_c", number(t.max_c)},
+                        {"dwells_with_temperature", t.dwells_with_temperature},
+                        {"dwells", t.dwells}};
+  }
   if (report.analysis) {
     // The analysis' keys beside the result's, never replacing one (local_gravity is the same).
     nlohmann::json extra = analysis_json(*report.analysis);

@@ -111,6 +111,14 @@ void write_text_report(std::ostream& out, const core::CalibrationReport& report,
     out << "  output unit:   " << report.output_unit << " (responsivities in " << report.output_unit
         << " per m/s^2, offsets in " << report.output_unit << ")\n";
   }
+  if (report.temperature) {
+    const core::RunTemperature& t = *report.temperature;
+    const auto precision = out.precision(4);
+    out << "  temperature:   S and O at T_ref = " << t.reference_c << " C (dwells " << t.min_c
+        << " to " << t.max_c << " C; " << t.dwells_with_temperature << " of " << t.dwells
+        << " dwells with a reading)\n";
+    out.precision(precision);
+  }
   out << "  quality gate:  " << (report.quality.pass ? "passed" : "FAILED") << "\n";
   for (const std::string& reason : report.quality.reasons) out << "    - " << reason << "\n";
   if (report.budget) write_budget_report(out, *report.budget, report.output_unit);

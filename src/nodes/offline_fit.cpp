@@ -31,13 +31,19 @@ int main(int argc, char** argv) {
   app.add_option("--csv", args.csv,
                  "position table: " + std::string(ai::core::kPositionTableHeader) +
                      " (optionally" + ai::core::kDirectionColumns +
-                     ": known orientations, phase '-')");
+                     ": known orientations, phase '-'; optionally" +
+                     ai::core::kTemperatureColumn + ": dwell temperature in C)");
   auto* imu =
       app.add_option("--imu-topic", args.imu_topic, "IMU topic in the bag (sensor_msgs/Imu)")
           ->capture_default_str();
   auto* command = app.add_option("--command-topic", args.command_topic,
                                  "gimbal command topic in the bag (accel_intrinsics/GimbalCommand)")
                       ->capture_default_str();
+  auto* temperature =
+      app.add_option("--temperature-topic", args.temperature_topic,
+                     "DUT temperature topic in the bag (sensor_msgs/Temperature, deg C; used when "
+                     "present, required when given)")
+          ->capture_default_str();
   auto* gravity = app.add_option("--gravity", args.gravity, "local gravity g in m/s^2")
                       ->capture_default_str();
   app.add_option("--model", args.model, "fit model: joint or eq4")->capture_default_str();
@@ -84,6 +90,7 @@ int main(int argc, char** argv) {
   }
   args.imu_topic_given = imu->count() > 0;
   args.command_topic_given = command->count() > 0;
+  args.temperature_topic_given = temperature->count() > 0;
   args.settle_discard_given = settle->count() > 0;
   args.imu_time_offset_given = offset->count() > 0;
   args.gravity_given = gravity->count() > 0;

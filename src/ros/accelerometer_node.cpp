@@ -1,6 +1,7 @@
 // Accelerometer node: AccelerometerSource -> imu/data_raw.
 #include "accel_intrinsics/ros/accelerometer_node.h"
 
+#include <sensor_msgs/Temperature.h>
 #include <tf2/exceptions.h>
 
 #include <cmath>
@@ -42,6 +43,16 @@ AccelerometerOptions AccelerometerOptions::load(const ros::NodeHandle& pnh) {
     require(seed >= 0, pnh, "seed", "must be >= 0");
     s.seed = static_cast<std::uint64_t>(seed);
   }
+  core::TemperatureProfile& temp = s.temperature;
+  read_param(pnh, "temperature/publish", &temp.recorded);
+  read_param(pnh, "temperature/start_c", &temp.start_c);
+  s.temperature_reference_c = temp.start_c;
+  read_param(pnh, "temperature/reference_c", &s.temperature_reference_c);
+  read_param(pnh, "temperature/rate_c_per_s", &temp.rate_c_per_s);
+  read_param(pnh, "temperature/sine_amplitude_c", &temp.sine_amplitude_c);
+  read_param(pnh, "temperature/sine_period_s", &temp.sine_period_s);
+  read_param(pnh, "temperature/noise_c", &temp.noise_c);
+  read_param(pnh, "temperature/rate_hz", &temp.rate_hz);
   try {
     s.validate();
   } catch (const std::invalid_argument& e) {
@@ -67,6 +78,8 @@ AccelerometerNode::AccelerometerNode(ros::NodeHandle nh, ros::NodeHandle pnh,
   simulated_ = simulated.get();
   source_ = std::move(simulated);
   imu_pub_ = nh_.advertise<sensor_msgs::Imu>(names::kImuTopic, 10000);
+  if (source_->publishes_temperature())
+    temperature_pub_ = nh_.advertise<sensor_msgs::Temperature>(names::kTemperatureTopic, 1000);
   tf_sub_ = nh_.subscribe(names::kTfTopic, 1000, &AccelerometerNode::on_tf, this,
                           ros::TransportHints().tcpNoDelay());
   command_sub_ =
@@ -159,6 +172,17 @@ void AccelerometerNode::poll(const ros::Time& now) {
     }
     imu_pub_.publish(to_msg(s, options_.frame_id, variance));
     ++published_;
+  }
+  if (!temperature_pub_) return;
+  temperature_batch_.clear();
+  source_->poll_temperatures(now.toSec(), &temperature_batch_);
+  for (const core::TemperatureSample& reading : temperature_batch_) {
+    sensor_msgs::Temperature msg;
+    msg.header.stamp = ros::Time(reading.stamp_s);
+    msg.header.frame_id = options_.frame_id;
+    msg.temperature = reading.temperature_c;
+    msg.variance = source_->temperature_variance();
+    temperature_pub_.publish(msg);
   }
 }
 

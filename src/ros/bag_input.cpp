@@ -7,6 +7,7 @@
 #include <rosbag/exceptions.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/Imu.h>
+#include <sensor_msgs/Temperature.h>
 
 #include <algorithm>
 #include <chrono>
@@ -181,7 +182,9 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
   try {
     const std::vector<BagTopic> topics = scanner ? scanner->topics() : list_topics(bag);
     const RunTopics run_topics =
-        resolve_run_topics(options.imu_topic, options.command_topic, topics, options.imu_by_type);
+        resolve_run_topics(options.imu_topic, options.command_topic, topics, options.imu_by_type,
+                           options.temperature_topic);
+    stats.temperature_topic = run_topics.temperature;
     stats.topic_note = run_topics.note;
     stats.imu_topic = run_topics.imu;
     stats.command_topic = run_topics.command;
@@ -189,20 +192,27 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
     // Connection ids of the two topics in the chunk scan.
     std::vector<std::uint32_t> imu_connections;
     std::vector<std::uint32_t> command_connections;
+    std::vector<std::uint32_t> temperature_connections;
     std::uint64_t total = 0;
-    if (scanner && !(scanner->connections_of(stats.imu_topic,
-                                             ros::message_traits::MD5Sum<sensor_msgs::Imu>::value(),
-                                             &imu_connections, &total) &&
-                     scanner->connections_of(stats.command_topic,
-                                             ros::message_traits::MD5Sum<GimbalCommand>::value(),
-                                             &command_connections, &total))) {
+    if (scanner &&
+        !(scanner->connections_of(stats.imu_topic,
+                                  ros::message_traits::MD5Sum<sensor_msgs::Imu>::value(),
+                                  &imu_connections, &total) &&
+          scanner->connections_of(stats.command_topic,
+                                  ros::message_traits::MD5Sum<GimbalCommand>::value(),
+                                  &command_connections, &total) &&
+          (stats.temperature_topic.empty() ||
+           scanner->connections_of(stats.temperature_topic,
+                                   ros::message_traits::MD5Sum<sensor_msgs::Temperature>::value(),
+                                   &temperature_connections, &total)))) {
       scanner.reset();  // another version of a message type: rosbag's instantiate() reports it
       open_bag(bag, path);
     }
     std::unique_ptr<rosbag::View> view;
     if (!scanner) {
-      view.reset(new rosbag::View(
-          bag, rosbag::TopicQuery(std::vector<std::string>{stats.imu_topic, stats.command_topic})));
+      std::vector<std::string> query{stats.imu_topic, stats.command_topic};
+      if (!stats.temperature_topic.empty()) query.push_back(stats.temperature_topic);
+      view.reset(new rosbag::View(bag, rosbag::TopicQuery(query)));
       total = view->size();
     }
     Progress progress(options.progress_stream, options.progress_interval_s, options.progress_label,
@@ -230,6 +240,15 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
       ++stats.imu_messages;
       progress.update(++done);
     };
+    auto on_temperature = [&](const ros::Time& bag_time, const sensor_msgs::Temperature& msg) {
+      on_time(bag_time);
+      // On the IMU's clock, like its samples.
+      assembler.add_temperature(
+          core::TemperatureSample{msg.header.stamp.toSec() + options.imu_time_offset_s,
+                                  msg.temperature});
+      ++stats.temperature_messages;
+      progress.update(++done);
+    };
     auto on_command = [&](const ros::Time& bag_time, const GimbalCommand& command) {
       on_time(bag_time);
       ++stats.command_messages;
@@ -254,18 +273,23 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
       stats.reader = "chunk scan";
       detail::ImuAccelerationOnly imu;
       GimbalCommand command;
+      sensor_msgs::Temperature temperature;
       auto contains = [](const std::vector<std::uint32_t>& ids, std::uint32_t id) {
         return std::find(ids.begin(), ids.end(), id) != ids.end();
       };
       scanner->scan([&](std::uint32_t conn, const ros::Time& bag_time, const std::uint8_t* data,
                         std::uint32_t length, std::size_t offset) {
         const bool is_imu = contains(imu_connections, conn);
-        if (!is_imu && !contains(command_connections, conn)) return;
+        const bool is_temperature = !is_imu && contains(temperature_connections, conn);
+        if (!is_imu && !is_temperature && !contains(command_connections, conn)) return;
         try {
           ros::serialization::IStream stream(const_cast<std::uint8_t*>(data), length);
           if (is_imu) {
             ros::serialization::deserialize(stream, imu);
             on_imu(bag_time, imu);
+          } else if (is_temperature) {
+            ros::serialization::deserialize(stream, temperature);
+            on_temperature(bag_time, temperature);
           } else {
             ros::serialization::deserialize(stream, command);
             on_command(bag_time, command);
@@ -282,6 +306,12 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
           if (!imu)
             throw BagInputError("message on '" + stats.imu_topic + "' is not a sensor_msgs/Imu");
           on_imu(m.getTime(), *imu);
+        } else if (m.getTopic() == stats.temperature_topic) {
+          const auto temperature = m.instantiate<sensor_msgs::Temperature>();
+          if (!temperature)
+            throw BagInputError("message on '" + stats.temperature_topic +
+                                "' is not a sensor_msgs/Temperature");
+          on_temperature(m.getTime(), *temperature);
         } else {
           const auto command = m.instantiate<GimbalCommand>();
           if (!command)
@@ -374,6 +404,8 @@ BagRun read_bags(const std::vector<std::string>& paths, const BagInputOptions& o
       }
       total.path += ", " + ordered[i].second;
       total.imu_messages += st.imu_messages;
+      total.temperature_messages += st.temperature_messages;
+      if (total.temperature_topic.empty()) total.temperature_topic = st.temperature_topic;
       total.command_messages += st.command_messages;
       total.invalid_commands += st.invalid_commands;
       total.bag_start_s = std::min(total.bag_start_s, st.bag_start_s);

@@ -13,6 +13,7 @@ namespace {
 
 constexpr char kImuType[] = "sensor_msgs/Imu";
 constexpr char kCommandType[] = "accel_intrinsics/GimbalCommand";
+constexpr char kTemperatureType[] = "sensor_msgs/Temperature";
 
 std::string strip_slash(const std::string& name) {
   return (!name.empty() && name[0] == '/') ? name.substr(1) : name;
@@ -109,6 +110,20 @@ std::string resolve_topic(const std::string& requested, const std::vector<BagTop
   return found.name;
 }
 
+std::string resolve_optional_topic(const std::string& requested, const std::vector<BagTopic>& topics,
+                                   const std::string& expected_datatype,
+                                   const std::string& preferred_namespace) {
+  if (requested.empty()) return "";
+  const std::string wanted = strip_slash(requested);
+  const bool absolute = requested[0] == '/';
+  bool any = false;
+  for (const BagTopic& t : topics) {
+    any = any || strip_slash(t.name) == wanted || (!absolute && ends_with(t.name, "/" + wanted));
+  }
+  if (!any) return "";
+  return resolve_topic(requested, topics, expected_datatype, preferred_namespace);
+}
+
 std::string topic_namespace(const std::string& resolved, const std::string& requested) {
   const std::string wanted = "/" + strip_slash(requested);
   const std::string full = resolved.empty() || resolved[0] == '/' ? resolved : "/" + resolved;
@@ -117,7 +132,8 @@ std::string topic_namespace(const std::string& resolved, const std::string& requ
 }
 
 RunTopics resolve_run_topics(const std::string& imu_requested, const std::string& command_requested,
-                             const std::vector<BagTopic>& topics, bool imu_by_type) {
+                             const std::vector<BagTopic>& topics, bool imu_by_type,
+                             const std::string& temperature_requested) {
   RunTopics run;
   // Resolve the IMU first; its namespace disambiguates the command topic, and vice versa.
   try {
@@ -145,11 +161,15 @@ RunTopics resolve_run_topics(const std::string& imu_requested, const std::string
       run.note = "no IMU topic '" + imu_requested + "'; using " + run.imu +
                  ", the only sensor_msgs/Imu topic of the bag (--imu-topic names another)";
       run.command = command;
+      run.temperature = resolve_optional_topic(temperature_requested, topics, kTemperatureType,
+                                               namespace_of(command, names::kGimbalCommandTopic,
+                                                            command_requested));
       return run;
     }
   }
   const std::string imu_ns = namespace_of(run.imu, names::kImuTopic, imu_requested);
   run.command = resolve_topic(command_requested, topics, kCommandType, imu_ns);
+  run.temperature = resolve_optional_topic(temperature_requested, topics, kTemperatureType, imu_ns);
   return run;
 }
 

@@ -65,6 +65,8 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
       ros::VoidConstPtr(), options_.immediate_imu ? &immediate_queue_ : nullptr);
   immediate_queue_.set_coalesce_period(options_.imu_coalesce_s);
   imu_sub_ = nh_.subscribe(imu_options);
+  temperature_sub_ =
+      nh_.subscribe(names::kTemperatureTopic, 1000, &CalibrationNode::on_temperature, this);
   progress_sub_ = nh_.subscribe(names::kProgressTopic, 10, &CalibrationNode::on_progress, this);
   timer_ =
       nh_.createTimer(ros::Duration(options_.flush_period_s), &CalibrationNode::on_timer, this);
@@ -87,6 +89,7 @@ CalibrationNode::~CalibrationNode() {
     shutting_down_ = true;  // a fit still running is finished and discarded
   }
   imu_sub_.shutdown();
+  temperature_sub_.shutdown();
   command_sub_.shutdown();
   timer_.stop();
   {
@@ -128,6 +131,14 @@ void CalibrationNode::handle_imu(const sensor_msgs::Imu& msg) {
     ++rate_count_;
   }
   const core::RunActions actions = run_.on_sample(sample);
+  if (!actions.empty()) carry_out(actions, nullptr);
+}
+
+void CalibrationNode::handle_temperature(const sensor_msgs::Temperature& msg) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  last_activity_ = ros::WallTime::now();
+  const core::RunActions actions =
+      run_.on_temperature(core::TemperatureSample{msg.header.stamp.toSec(), msg.temperature});
   if (!actions.empty()) carry_out(actions, nullptr);
 }
 

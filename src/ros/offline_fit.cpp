@@ -123,6 +123,7 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
   BagInputOptions options;
   options.imu_topic = args.imu_topic;
   options.command_topic = args.command_topic;
+  options.temperature_topic = args.temperature_topic;
   options.assembler.settle_discard_s = args.settle_discard_s;
   options.progress_stream = &err;
   options.imu_time_offset_s = args.imu_time_offset_s;
@@ -153,6 +154,10 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
     throw Failure{kOfflineFitBadInput, "no IMU messages on '" + st.imu_topic + "' in " + st.path};
   }
   if (!st.topic_note.empty()) err << kOfflineFitProgram << ": note: " << st.topic_note << std::endl;
+  if (args.temperature_topic_given && st.temperature_topic.empty()) {
+    throw Failure{kOfflineFitBadInput,
+                  "no temperature topic '" + args.temperature_topic + "' in " + st.path};
+  }
   // One clock, before anything is fitted: dwells on a shifted clock are garbage.
   if (options.clock_check) {
     const core::ClockCheckResult clock = clock_check.result();
@@ -191,8 +196,10 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
   description.bag = bag;
   std::ostringstream summary;
   summary << (st.files > 1 ? "bags " : "bag ") << st.path << " (" << st.imu_messages << " IMU messages on " << st.imu_topic
-          << ", " << st.command_messages << " commands on " << st.command_topic << ", "
-          << std::fixed << std::setprecision(1) << bag.duration_s << " s)";
+          << ", " << st.command_messages << " commands on " << st.command_topic << ", ";
+  if (!st.temperature_topic.empty())
+    summary << st.temperature_messages << " temperatures on " << st.temperature_topic << ", ";
+  summary << std::fixed << std::setprecision(1) << bag.duration_s << " s)";
   description.summary = summary.str();
   input.context.input = description;
   check_bag_run(st, input.table, &input);
@@ -242,8 +249,10 @@ void check_command_line(const OfflineFitArguments& args) {
   if (!std::isfinite(args.imu_time_offset_s)) {
     throw Failure{kOfflineFitBadCommandLine, "--imu-time-offset must be a number of seconds"};
   }
-  if (!args.csv.empty() && (args.imu_topic_given || args.command_topic_given)) {
-    throw Failure{kOfflineFitBadCommandLine, "--imu-topic and --command-topic apply to --bag only"};
+  if (!args.csv.empty() &&
+      (args.imu_topic_given || args.command_topic_given || args.temperature_topic_given)) {
+    throw Failure{kOfflineFitBadCommandLine,
+                  "--imu-topic, --command-topic and --temperature-topic apply to --bag only"};
   }
   if (!args.csv.empty() && args.settle_discard_given) {
     throw Failure{

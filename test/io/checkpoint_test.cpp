@@ -9,6 +9,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "accel_intrinsics/io/atomic_file.h"
@@ -75,6 +76,57 @@ TEST(Checkpoint, TornLastLineIsDroppedAndTheRunContinuesAfterTheCompleteRows) {
   ASSERT_EQ(reloaded->table.rows.size(), 4u);
   EXPECT_EQ(reloaded->table.rows[3].step, 3u);
   EXPECT_EQ(reloaded->table.rows[3].n, 103u);
+}
+
+// A run with temperatures checkpoints the temperature_c column and restores it; a checkpoint
+// without the column is continued without it (the file stays one table).
+TEST(Checkpoint, TemperaturesAreKeptAndAnOldTableIsContinuedInItsOwnColumns) {
+  TempDir dir;
+  core::CheckpointState state;
+  state.steps = 6;
+  {
+    CheckpointFiles files(dir.path, "t_");
+    for (std::uint32_t k = 0; k < 3; ++k) {
+      core::DwellRecord r = row(core::Phase::Y, k);
+      r.temperature_c = 21.5 + 0.25 * k;
+      if (k == 1) r.temperature_c = std::numeric_limits<double>::quiet_NaN();  // no reading
+      files.append_row(r);
+    }
+    files.write_state(state);
+  }
+  {
+    CheckpointFiles files(dir.path, "t_");
+    const auto restored = files.load();
+    ASSERT_TRUE(restored.has_value());
+    ASSERT_EQ(restored->table.rows.size(), 3u);
+    EXPECT_EQ(restored->table.rows[0].temperature_c, 21.5);
+    EXPECT_FALSE(restored->table.rows[1].has_temperature());
+    EXPECT_EQ(restored->table.rows[2].temperature_c, 22.0);
+    core::DwellRecord r = row(core::Phase::Y, 3);
+    r.temperature_c = 23.0;
+    files.append_row(r);
+    const auto again = CheckpointFiles(dir.path, "t_").load();
+    ASSERT_TRUE(again.has_value());
+    ASSERT_EQ(again->table.rows.size(), 4u);
+    EXPECT_EQ(again->table.rows[3].temperature_c, 23.0);
+  }
+
+  // An older checkpoint (no temperature column) continued by a run that now has temperatures.
+  TempDir old_dir;
+  {
+    CheckpointFiles files(old_dir.path, "o_");
+    files.append_row(row(core::Phase::X, 0));  // no temperature: no column
+    files.write_state(state);
+  }
+  CheckpointFiles files(old_dir.path, "o_");
+  ASSERT_TRUE(files.load().has_value());
+  core::DwellRecord r = row(core::Phase::X, 1);
+  r.temperature_c = 30.0;
+  files.append_row(r);
+  const auto restored = CheckpointFiles(old_dir.path, "o_").load();
+  ASSERT_TRUE(restored.has_value());  // still one readable table
+  ASSERT_EQ(restored->table.rows.size(), 2u);
+  EXPECT_FALSE(restored->table.rows[1].has_temperature());
 }
 
 TEST(Checkpoint, NoStateFileMeansNoCheckpoint) {

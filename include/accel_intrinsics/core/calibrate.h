@@ -40,6 +40,18 @@ struct CalibrateOptions {
   std::optional<BudgetSpec> budget;
 };
 
+// The run's temperature (DESIGN.md section 10), when some dwell recorded one: S and O, and any
+// fitted temperature coefficient, refer to reference_c (T_ref, the mean dwell temperature).
+struct RunTemperature {
+  double reference_c = 0.0;
+  double min_c = 0.0;
+  double max_c = 0.0;
+  std::size_t dwells_with_temperature = 0;
+  std::size_t dwells = 0;
+};
+// Of a table; nullopt when no dwell has a temperature.
+std::optional<RunTemperature> run_temperature(const PositionTable& table);
+
 struct CalibrationReport {
   FitResult base_fit;     // the fit with options.fit.model
   FitResult certificate;  // what result files and messages hold (base_fit or the refit)
@@ -54,6 +66,8 @@ struct CalibrationReport {
   std::string output_unit = "m/s^2";
   // White noise from the dwells (noise.h), when they hold samples and durations.
   std::optional<DwellNoise> noise;
+  // When the dwells recorded a temperature: T_ref and the range (the result's "temperature").
+  std::optional<RunTemperature> temperature;
   // When options.budget: the certificate's uncertainty budget (type A plus the type-B sources).
   std::optional<UncertaintyBudget> budget;
 };

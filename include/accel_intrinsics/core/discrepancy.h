@@ -64,6 +64,14 @@ struct AnalysisOptions {
   int harmonics = 4;                    // localization: harmonics 0..harmonics of the angle
   int time_bins = 6;                    // localization: equal time bins over the run
   double detection_power = 0.9;         // for the reported detection thresholds
+  // The temperature effects (offset_ and scale_temperature_coefficient) are screened only when
+  // every dwell has a temperature and the dwell temperatures span at least this much (K, max -
+  // min); otherwise they are listed as not screened, with the reason. 0.5 K: on-chip temperature
+  // sensors resolve about 0.1 K and self-heating moves them by as much, so a smaller span is
+  // mostly reading error (which biases a coefficient toward zero); and a typical MEMS offset
+  // coefficient (0.1 - 1 mg/K) moves the outputs by less than 0.5 mg over it, about the noise of
+  // one dwell mean.
+  double min_temperature_span_k = 0.5;
   // Effects known to be present: always fitted, never screened (e.g. from an earlier analysis).
   std::vector<Effect> base_effects;
   // Candidates to screen; empty = every effect the table can reveal (default_candidates()).
@@ -80,8 +88,22 @@ void validate(const AnalysisOptions& options);
 // Candidates the dwell means of `table` can reveal: quadratic and cubic non-linearity and offset
 // drift per accelerometer; angle offset, angle scale and axis tilt per phase; backlash per phase
 // only when that phase has a two-way sweep (rows approached from both sides). timing_lag needs
-// raw streams and is never a dwell-mean candidate.
-std::vector<Effect> default_candidates(const PositionTable& table);
+// raw streams and is never a dwell-mean candidate. The temperature coefficients per accelerometer
+// when every dwell has a temperature and they span min_temperature_span_k.
+std::vector<Effect> default_candidates(const PositionTable& table,
+                                       double min_temperature_span_k = 0.5);
+
+// Whether the dwell temperatures of `table` let the analysis screen the temperature effects, and
+// if not, why (for AnalysisResult::not_screened).
+struct TemperatureCoverage {
+  std::size_t rows = 0;
+  std::size_t rows_with_temperature = 0;
+  double span_k = 0.0;  // max - min of the dwell temperatures (rows that have one)
+  bool screenable = false;
+  std::string reason;  // empty when screenable
+};
+TemperatureCoverage temperature_coverage(const PositionTable& table,
+                                         double min_temperature_span_k);
 
 // Whole-run summary of a gap.
 struct GapSummary {

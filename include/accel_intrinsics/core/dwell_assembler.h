@@ -40,6 +40,12 @@ struct ImuSample {
   Eigen::Vector3d outputs = Eigen::Vector3d::Zero();  // R_u, R_v, R_w in m/s^2
 };
 
+// A sensor_msgs/Temperature reading (imu/temperature), ROS-free: degrees C at a stamp.
+struct TemperatureSample {
+  double stamp_s = 0.0;
+  double temperature_c = 0.0;
+};
+
 struct AssemblerOptions {
   double settle_discard_s = 0.0;  // samples in the first part of each dwell are dropped
   double reorder_window_s = 0.25;  // how late (in stamp time) a message may arrive
@@ -55,6 +61,10 @@ struct AssemblerCounters {
   std::uint64_t dropped_backwards = 0;
   std::uint64_t duplicates = 0;  // the same stamp and values again (a duplicated message)
   std::uint64_t dropped_late = 0;       // arrived after the reorder window had passed its stamp
+  // Temperature readings averaged into a dwell, and those dropped (outside every dwell, in the
+  // settle discard, late, or not finite).
+  std::uint64_t temperatures_used = 0;
+  std::uint64_t temperatures_dropped = 0;
   std::uint64_t commands = 0;
   std::uint64_t commands_out_of_order = 0;  // SETTLED that does not follow its MOVING, etc.
   std::string last_warning;                 // the latest out-of-protocol event, for logs
@@ -79,6 +89,9 @@ class DwellAssembler {
 
   void add_command(const GimbalEvent& event);
   void add_sample(const ImuSample& sample);
+  // Temperatures join dwells by stamp like samples; a dwell's temperature_c is the mean of its
+  // readings (NaN when it got none).
+  void add_temperature(const TemperatureSample& reading);
   // Processes everything buffered (end of a bag, or DONE plus the reorder window online).
   void flush();
   // Processes buffered events with stamps up to `stamp_s` (a node's timer).
@@ -100,6 +113,8 @@ class DwellAssembler {
     bool is_command;
     GimbalEvent command;
     ImuSample sample;
+    bool is_temperature;  // a TemperatureSample (temperature_c), neither command nor sample
+    double temperature_c;
   };
   struct Later {
     bool operator()(const Event& a, const Event& b) const;
@@ -110,6 +125,7 @@ class DwellAssembler {
   void process(const Event& event);
   void process_command(const GimbalEvent& command);
   void process_sample(const ImuSample& sample);
+  void process_temperature(double stamp_s, double temperature_c);
   void close_dwell(double end_stamp_s);
 
   AssemblerOptions options_;
@@ -129,6 +145,8 @@ class DwellAssembler {
   bool in_dwell_ = false;
   GimbalEvent dwell_command_;
   DwellAccumulator accumulator_;
+  double temperature_sum_c_ = 0.0;
+  std::uint64_t temperature_count_ = 0;
   bool done_ = false;
 
   PositionTable table_;

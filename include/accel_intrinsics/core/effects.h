@@ -17,6 +17,8 @@ enum class EffectKind {
   OffsetDrift,            // R_s += d (t - t0)               target u|v|w, (m/s^2)/s
   TimingLag,              // IMU stamps late by lag          target all,   s
   Backlash,               // angle error +-b/2 by approach   target x|y|z, rad
+  OffsetTemperatureCoefficient,  // R_s += c (T - T_ref)     target u|v|w, (m/s^2)/K
+  ScaleTemperatureCoefficient,   // R_s += c (T - T_ref) L_s target u|v|w, 1/K
 };
 
 enum class TargetKind { Accelerometer, Phase, All };
@@ -26,6 +28,9 @@ enum class Precondition {
   None,
   TwoWaySweep,  // the phase approached from both sides (ProtocolOptions::two_way)
   RawStreams,   // the samples and gimbal events themselves, not dwell means (a bag, a recording)
+  // Every dwell has a mean temperature (imu/temperature, position table column temperature_c) and
+  // they span at least AnalysisOptions::min_temperature_span_k.
+  TemperatureVaries,
 };
 
 // The experiment that separates two effects whose signatures in a run are alike.

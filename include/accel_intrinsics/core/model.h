@@ -27,6 +27,10 @@ struct DwellGeometry {
   double angle_rad = 0.0;  // commanded alpha
   double time_s = 0.0;     // time since t0 (first gimbal command); mid-dwell for a dwell mean
   int approach = +1;       // +1 approached with increasing angle, -1 decreasing (backlash)
+  // T - T_ref in K: the dwell's (or sample's) temperature minus the run's mean temperature
+  // (DESIGN.md section 10); 0 when no temperature was recorded (has_temperature false).
+  double temperature_offset_k = 0.0;
+  bool has_temperature = false;
   // A known orientation (position table f_x,f_y,f_z): the unit specific force in the DUT frame,
   // whatever the phase and angle say; the gimbal's angle and axis effects do not apply to it.
   bool has_direction = false;
@@ -97,6 +101,12 @@ Eigen::Matrix<T, 3, 1> predict_outputs(const T* S_row_major, const T* offsets,
           break;
         }
         case EffectKind::OffsetDrift: out = out + values[i] * T(geom.time_s); break;
+        case EffectKind::OffsetTemperatureCoefficient:
+          out = out + values[i] * T(geom.temperature_offset_k);
+          break;
+        case EffectKind::ScaleTemperatureCoefficient:
+          out = out + values[i] * T(geom.temperature_offset_k) * linear;
+          break;
         default: break;
       }
     }

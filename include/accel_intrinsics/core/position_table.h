@@ -1,11 +1,13 @@
 // Dwell means: the streaming accumulator, the position table and its CSV form
 // (DESIGN.md section 2:
 // phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w, optionally
-// followed by f_x,f_y,f_z: a known orientation, section 6).
+// followed by f_x,f_y,f_z: a known orientation, section 6, and/or temperature_c: the dwell's mean
+// temperature, section 10).
 #pragma once
 
 #include <Eigen/Core>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <iosfwd>
 #include <limits>
@@ -50,6 +52,10 @@ struct DwellRecord {
   // then labels without meaning; only the joint fit takes such rows.
   bool has_direction = false;
   Eigen::Vector3d direction = Eigen::Vector3d::Zero();
+  // Mean temperature of the dwell in degrees C (imu/temperature, column temperature_c); NaN when
+  // none was recorded.
+  double temperature_c = std::numeric_limits<double>::quiet_NaN();
+  bool has_temperature() const { return std::isfinite(temperature_c); }
 };
 
 // The unit specific force of a row in the DUT frame: its direction, or the gimbal's
@@ -70,7 +76,8 @@ class PositionTableError : public std::runtime_error {
 
 // The CSV header line, exactly as in the contract, and its extension for known orientations.
 extern const char* const kPositionTableHeader;
-extern const char* const kDirectionColumns;  // ",f_x,f_y,f_z"
+extern const char* const kDirectionColumns;    // ",f_x,f_y,f_z"
+extern const char* const kTemperatureColumn;    // ",temperature_c" (after f_x,f_y,f_z if both)
 
 // Reads a position table. Throws PositionTableError naming the line number and the field for a
 // missing header, wrong column count, unparsable or non-finite number, unknown phase, n = 0.
@@ -79,8 +86,9 @@ PositionTable read_position_table_file(const std::string& path);
 // Writes with full double precision (round trip exact).
 void write_position_table(std::ostream& out, const PositionTable& table);
 void write_position_table_file(const std::string& path, const PositionTable& table);
-// Appends one row (no header) and flushes: the checkpoint of a completed dwell.
-void write_position_row(std::ostream& out, const DwellRecord& row);
+// Appends one row (no header) and flushes: the checkpoint of a completed dwell. With
+// `temperature_column` the row ends with the temperature_c field (empty when not recorded).
+void write_position_row(std::ostream& out, const DwellRecord& row, bool temperature_column = false);
 
 // The one rule for the direction of approach of a visit, from the order of visits per phase: the
 // first visit of a phase is +1, a higher angle than the previous visit +1, a lower one -1, and
@@ -98,8 +106,16 @@ class ApproachTracker {
   int previous_approach_[3] = {+1, +1, +1};
 };
 
-// The model's per-dwell inputs of one row (mid-dwell time relative to t0, angle, phase, approach).
-DwellGeometry dwell_inputs(const DwellRecord& row, double time_origin_s, int approach);
+// T_ref of the temperature terms (DESIGN.md section 10): the mean of the dwell temperatures over
+// the rows that have one; NaN when none has.
+double reference_temperature_c(const PositionTable& table);
+// Rows with a temperature (DwellRecord::has_temperature).
+std::size_t rows_with_temperature(const PositionTable& table);
+
+// The model's per-dwell inputs of one row (mid-dwell time relative to t0, angle, phase, approach,
+// temperature relative to `reference_temperature_c` when the row has one).
+DwellGeometry dwell_inputs(const DwellRecord& row, double time_origin_s, int approach,
+                           double reference_temperature_c = std::numeric_limits<double>::quiet_NaN());
 
 // The model's per-dwell inputs of each row (dwell_inputs), the approach from ApproachTracker.
 std::vector<DwellGeometry> dwell_geometries(const PositionTable& table);

@@ -14,6 +14,26 @@
 namespace accel_intrinsics {
 namespace core {
 
+// The DUT's temperature during a simulated run (DESIGN.md section 10), t in seconds since the
+// first gimbal command: T(t) = start_c + rate_c_per_s t + sine_amplitude_c sin(2 pi t /
+// sine_period_s). The temperature effects act on the true T; what is recorded (imu/temperature,
+// the position table's temperature_c) adds white reading noise. A sinusoid (warm-up and cool-down)
+// makes temperature and time differ, so drift and a temperature coefficient can be separated; a
+// linear ramp alone cannot separate them.
+struct TemperatureProfile {
+  bool recorded = false;  // record the readings (temperature_c, Recording::temperatures)
+  double start_c = 25.0;  // degrees C at t = 0
+  double rate_c_per_s = 0.0;
+  double sine_amplitude_c = 0.0;
+  double sine_period_s = 600.0;
+  double noise_c = 0.0;  // standard deviation of one reading, K
+  double rate_hz = 1.0;  // readings per second
+
+  double at(double t_s) const;
+  // Mean of T over [t0_s, t1_s] (exact); T(t0_s) for an empty interval.
+  double mean_over(double t0_s, double t1_s) const;
+};
+
 struct SimulationOptions {
   Device truth;  // S, O and effect terms (all of them, incl. gimbal side)
   ProtocolOptions protocol;
@@ -22,7 +42,12 @@ struct SimulationOptions {
   double quantization = 0.0;                         // LSB in m/s^2; 0 = none
   double local_gravity = kStandardGravity;
   std::uint64_t seed = 1;
+  TemperatureProfile temperature;  // constant 25 C and not recorded by default
 };
+
+// T_ref of the simulated run: the mean over the schedule's dwells of the true dwell-mean
+// temperature (what reference_temperature_c() gives for noise-free readings).
+double simulated_reference_temperature_c(const SimulationOptions& options);
 
 // Per-sample noise standard deviation: noise_density * sqrt(rate_hz / 2).
 double sample_noise_std(const SimulationOptions& options);
@@ -40,6 +65,7 @@ PositionTable simulate_position_table(const SimulationOptions& options);
 struct Recording {
   std::vector<GimbalEvent> commands;
   std::vector<ImuSample> samples;
+  std::vector<TemperatureSample> temperatures;  // when options.temperature.recorded
 };
 Recording simulate_recording(const SimulationOptions& options);
 

@@ -15,6 +15,7 @@
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/model.h"
+#include "accel_intrinsics/core/simulator.h"
 
 namespace accel_intrinsics {
 
@@ -24,6 +25,11 @@ class AccelerometerSource {
   virtual std::string name() const = 0;
   // Appends every sample that is ready with a stamp up to about now_s (seconds, node clock).
   virtual void poll(double now_s, std::vector<core::ImuSample>* out) = 0;
+  // Appends the DUT temperature readings (degrees C) ready up to about now_s; none by default.
+  virtual void poll_temperatures(double /*now_s*/, std::vector<core::TemperatureSample>* /*out*/) {}
+  virtual bool publishes_temperature() const { return false; }
+  // Variance of one temperature reading, K^2; 0 = unknown.
+  virtual double temperature_variance() const { return 0.0; }
   // Variance of one output sample, (m/s^2)^2, for the message covariance; 0 = unknown.
   virtual double variance_per_axis() const { return 0.0; }
   // Forgets the sample clock (after the node's clock jumped backwards).
@@ -48,6 +54,12 @@ struct SimulatedAccelerometerOptions {
   double quantization = 0.0;                               // LSB, m/s^2; 0 = none
   double local_gravity = core::kStandardGravity;           // m/s^2, the simulated site
   std::uint64_t seed = 1;                                  // noise seed (reproducible runs)
+  // The DUT's temperature, t since the first gimbal command (core::TemperatureProfile); with
+  // temperature.recorded the source also publishes readings. The temperature effects
+  // (offset_/scale_temperature_coefficient) act on T - temperature_reference_c: the truth S and O
+  // hold at that temperature (a fit reports them at the run's mean temperature instead).
+  core::TemperatureProfile temperature;
+  double temperature_reference_c = 25.0;
 
   // Throws std::invalid_argument naming the field.
   void validate() const;
@@ -74,7 +86,15 @@ class SimulatedAccelerometer : public AccelerometerSource {
   // Noise-free outputs for a specific force f in the DUT frame at time_s since t0, evaluated
   // with predict_outputs() of model.h (f is written as phase x at angle atan2(f_y, f_z) with an
   // axis tilt asin(f_x / |f|) and g = |f|, which reproduces S f exactly).
-  Eigen::Vector3d outputs(const Eigen::Vector3d& f_dut, double time_s) const;
+  Eigen::Vector3d outputs(const Eigen::Vector3d& f_dut, double time_s,
+                          double temperature_offset_k = 0.0) const;
+  // The true DUT temperature at time_s since t0, degrees C.
+  double temperature_c(double time_s) const { return options_.temperature.at(time_s); }
+  void poll_temperatures(double now_s, std::vector<core::TemperatureSample>* out) override;
+  bool publishes_temperature() const override { return options_.temperature.recorded; }
+  double temperature_variance() const override {
+    return options_.temperature.noise_c * options_.temperature.noise_c;
+  }
   // f_dut = R_world_dut^T (0, 0, g): +g on the upward axis (REP 103).
   Eigen::Vector3d specific_force(const Eigen::Matrix3d& R_world_dut) const;
 
@@ -90,9 +110,11 @@ class SimulatedAccelerometer : public AccelerometerSource {
   double lag_s_ = 0.0;
   double time_origin_s_ = std::numeric_limits<double>::quiet_NaN();
   std::int64_t next_index_ = -1;  // sample k is taken at k / rate_hz
+  std::int64_t next_temperature_index_ = -1;  // reading k at k / temperature.rate_hz
   std::uint64_t skipped_ = 0;
   std::mt19937_64 rng_;
   std::normal_distribution<double> normal_{0.0, 1.0};
+  std::mt19937_64 temperature_rng_;  // readings: their own stream (the samples' stay the same)
 };
 
 }  // namespace accel_intrinsics

@@ -53,6 +53,9 @@ class CheckpointFiles {
   std::string dir_, prefix_;
   std::ofstream table_;
   bool append_ = false;  // after load(): continue the restored table
+  // The table has the temperature_c column: decided by the header of a continued table, else by
+  // the first row (a run that records temperatures has one from the first dwell on).
+  bool temperature_column_ = false;
 };
 
 }  // namespace io

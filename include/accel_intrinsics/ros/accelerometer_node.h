@@ -55,6 +55,8 @@ class AccelerometerNode {
   SimulatedAccelerometer* simulated_ = nullptr;  // source_ when simulated
   ros::Subscriber tf_sub_, command_sub_;
   ros::Publisher imu_pub_;
+  ros::Publisher temperature_pub_;  // imu/temperature, when the source publishes a temperature
+  std::vector<core::TemperatureSample> temperature_batch_;
   ros::Timer timer_;
   ros::Time latest_tf_;  // newest stamp of a complete world -> dut chain
   ros::Time oldest_tf_;  // oldest stamp still in the buffer (after a restart: the first)

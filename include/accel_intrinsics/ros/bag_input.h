@@ -23,6 +23,9 @@ struct BagInputOptions {
   // "/<ns>/imu/data_raw"; a leading '/' asks for that exact topic. See resolve_topic().
   std::string imu_topic = names::kImuTopic;
   std::string command_topic = names::kGimbalCommandTopic;
+  // Optional sensor_msgs/Temperature of the DUT (DESIGN.md section 10): read when the bag has it
+  // (each dwell then records its mean temperature); "" never reads one.
+  std::string temperature_topic = names::kTemperatureTopic;
   // Dwell assembly. The reorder window defaults to 10 s, wider than any shipped configuration
   // (node 0.25 s, simulated stand 5 s): in a bag it costs only memory (window x rate events) and
   // a little time, and it keeps messages that a recorder received late (a sim-time recording
@@ -62,7 +65,9 @@ struct BagInputStats {
   std::string path;
   std::string imu_topic;      // as resolved in the bag
   std::string command_topic;  // as resolved in the bag
+  std::string temperature_topic;  // as resolved in the bag; "" when it has none
   std::uint64_t imu_messages = 0;
+  std::uint64_t temperature_messages = 0;
   std::uint64_t command_messages = 0;
   // Rejected as the calibration node rejects them: phase or state outside the constants, angle
   // not finite, steps 0 or step >= steps, zero stamp.

@@ -31,10 +31,17 @@ std::string resolve_topic(const std::string& requested, const std::vector<BagTop
 // ("/stand1/imu/data_raw", "imu/data_raw") -> "/stand1/"; "/" when not namespaced.
 std::string topic_namespace(const std::string& resolved, const std::string& requested);
 
+// An optional topic (imu/temperature): "" when no topic of the bag has the requested name (exact
+// or namespaced); otherwise resolve_topic(), which throws for an ambiguous name or another type.
+std::string resolve_optional_topic(const std::string& requested, const std::vector<BagTopic>& topics,
+                                   const std::string& expected_datatype,
+                                   const std::string& preferred_namespace = "");
+
 // The IMU (sensor_msgs/Imu) and gimbal command (accel_intrinsics/GimbalCommand) topics of a run.
 struct RunTopics {
   std::string imu;
   std::string command;
+  std::string temperature;  // sensor_msgs/Temperature, "" when the bag has none (optional)
   std::string note;  // how a topic was found when not by its name, for the user
 };
 
@@ -42,7 +49,10 @@ struct RunTopics {
 // namespaces, the namespace of the other decides (several stands recorded in one bag). With
 // `imu_by_type` (the IMU topic was not named by the user), a bag without the default IMU topic
 // but with exactly one sensor_msgs/Imu topic uses that one and says so in `note`.
+// The temperature topic `temperature_requested` is optional ("" skips it) and preferred in the
+// IMU's namespace.
 RunTopics resolve_run_topics(const std::string& imu_requested, const std::string& command_requested,
-                             const std::vector<BagTopic>& topics, bool imu_by_type = false);
+                             const std::vector<BagTopic>& topics, bool imu_by_type = false,
+                             const std::string& temperature_requested = "");
 
 }  // namespace accel_intrinsics

@@ -6,6 +6,8 @@ namespace names {
 
 constexpr char kGimbalCommandTopic[] = "gimbal/command";
 constexpr char kImuTopic[] = "imu/data_raw";
+// sensor_msgs/Temperature of the DUT, degrees C, optional (DESIGN.md section 10).
+constexpr char kTemperatureTopic[] = "imu/temperature";
 constexpr char kResultTopic[] = "calibration/result";
 constexpr char kStartService[] = "gimbal_controller/start";
 constexpr char kAbortService[] = "gimbal_controller/abort";

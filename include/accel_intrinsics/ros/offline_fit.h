@@ -64,6 +64,8 @@ struct OfflineFitArguments {
   std::string csv;
   std::string imu_topic = names::kImuTopic;
   std::string command_topic = names::kGimbalCommandTopic;
+  // Optional DUT temperature (sensor_msgs/Temperature): used when the bag has it.
+  std::string temperature_topic = names::kTemperatureTopic;
   double gravity = core::kStandardGravity;  // m/s^2
   std::string model = "joint";
   bool analyze = false;
@@ -79,6 +81,7 @@ struct OfflineFitArguments {
   // Given explicitly (they apply to --bag only, and are refused with --csv).
   bool imu_topic_given = false;
   bool command_topic_given = false;
+  bool temperature_topic_given = false;
   bool settle_discard_given = false;
   bool imu_time_offset_given = false;
   bool gravity_given = false;
