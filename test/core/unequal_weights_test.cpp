@@ -23,6 +23,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -197,6 +198,25 @@ TEST(UnequalWeights, SimulatorMakesUnequalDwellsAndAxes) {
   for (std::size_t i = 0; i < table.rows.size(); ++i) {
     EXPECT_EQ(assembler.table().rows[i].n, table.rows[i].n) << i;
     EXPECT_DOUBLE_EQ(assembler.table().rows[i].t_start_s, table.rows[i].t_start_s) << i;
+  }
+}
+
+TEST(UnequalWeights, SimulatorRejectsBadUnequalOptionsNamingTheField) {
+  SimulationOptions sim = unequal_setup();
+  sim.dwell_s_pattern = {1.0, 0.005};  // 0.5 samples at 100 Hz
+  try {
+    simulate_position_table(sim);
+    FAIL() << "a dwell of 0.005 s was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("dwell_s_pattern"), std::string::npos) << e.what();
+  }
+  sim = unequal_setup();
+  sim.noise_scale(1) = -1.0;
+  try {
+    simulate_recording(sim);
+    FAIL() << "a negative noise_scale was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("noise_scale"), std::string::npos) << e.what();
   }
 }
 
