@@ -1,13 +1,15 @@
 // Detection power of the discrepancy analysis (issue 5, "Performance"): the smallest quadratic
 // non-linearity and the smallest angle offset that analyze() names in 90 % of runs, beside the
-// theoretical threshold for the same device, noise and protocol (non-central chi-square).
+// theoretical threshold for the same device, noise and protocol (non-central chi-square),
+// computed independently of the analysis (test/support/detection_theory.h: known noise, its own
+// projection and its own max-T draws; nothing of what analyze() reports).
 //
 // Prints `name: value unit` lines. The theoretical threshold of a candidate with linearized
 // standard uncertainty sigma_c (1 / |b_perp|, after projecting out S and O) is
 //   value_90 = sqrt(lambda_90) * sigma_c,  P(chi2_1(lambda_90) > c) = 0.9
-// with c either the family-wise critical value the analysis uses (Monte Carlo max-T at
-// alpha = 5 % across all candidates: the best any test with the same false-alarm guarantee can
-// do) or the single-test value 3.84 (an oracle that knows in advance which effect to look for).
+// with c either the family-wise critical value of max-T across all candidates at the analysis'
+// alpha (2.5 %), from the theory's own draws: the best any test with the same false-alarm
+// guarantee can do) or the single-test value 3.84 (an oracle that knows in advance which effect to look for).
 //
 // Usage: detection_bench [--runs R] [--example DIR]
 //   --runs R       Monte Carlo runs per amplitude (default 200)
@@ -28,6 +30,7 @@
 #include "accel_intrinsics/io/analysis_report.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/residuals_csv.h"
+#include "../test/support/detection_theory.h"
 
 using namespace accel_intrinsics::core;
 
@@ -57,20 +60,27 @@ struct Theory {
 };
 
 Theory theory_for(const SimulationOptions& base, const Effect& e) {
-  // Average the (weakly noise-dependent) sigma_c and critical value over a few clean runs.
+  // Independent of analyze() (test/support/detection_theory.h, shared with
+  // test/core/detection_theory_test.cpp): the Fisher information of the effect term with S and O
+  // projected out and the simulator's known noise, the family-wise max-T critical value of the
+  // analysis' candidate family from the theory's own Monte Carlo draws at the analysis' alpha.
+  namespace dt = accel_intrinsics::detection_theory;
+  SimulationOptions clean = base;
+  clean.noise_density = 0.0;  // the timeline and sample counts only
+  dt::Problem pr;
+  pr.S = base.truth.S;
+  pr.sigma = sample_noise_stds(base);
+  pr.g = base.local_gravity;
+  pr.dwells = dt::dwells_of(simulate_position_table(clean));
+  const dt::Theory th =
+      dt::theory_for(pr, e, dt::candidate_family(base.protocol.two_way), AnalysisOptions{}.alpha);
   Theory t;
-  const int n = 10;
-  for (int i = 0; i < n; ++i) {
-    SimulationOptions so = base;
-    so.seed = 900000 + static_cast<std::uint64_t>(i);
-    const AnalysisResult a = analyze(simulate_position_table(so));
-    for (const CandidateScore& c : a.steps.front().candidates) {
-      if (c.effect.kind == e.kind && c.effect.target == e.target) t.sigma_c += c.estimate_std / n;
-    }
-    t.critical_fw += a.steps.front().critical_chi2 / n;
-  }
-  t.value_fw = std::sqrt(noncentrality_for_power(t.critical_fw, 0.9)) * t.sigma_c;
-  t.value_single = std::sqrt(noncentrality_for_power(3.841458820694124, 0.9)) * t.sigma_c;
+  t.sigma_c = th.sigma_value;
+  t.critical_fw = th.critical_chi2;
+  t.value_fw = dt::threshold(th, 0.9);
+  dt::Theory single = th;
+  single.critical_chi2 = 3.841458820694124;  // chi2_1 95 % quantile: one test, no family
+  t.value_single = dt::threshold(single, 0.9);
   return t;
 }
 

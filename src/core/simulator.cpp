@@ -15,6 +15,25 @@ double sample_noise_std(const SimulationOptions& options) {
   return options.noise_density * std::sqrt(0.5 * options.rate_hz);
 }
 
+Eigen::Vector3d sample_noise_stds(const SimulationOptions& options) {
+  return sample_noise_std(options) * options.noise_scale;
+}
+
+std::vector<ScheduledPosition> simulation_schedule(const SimulationOptions& options) {
+  std::vector<ScheduledPosition> schedule = build_schedule(options.protocol);
+  if (options.dwell_s_pattern.empty()) return schedule;
+  double shift = 0.0;  // accumulated (dwell - protocol.dwell_s) of the positions before
+  for (std::size_t i = 0; i < schedule.size(); ++i) {
+    ScheduledPosition& p = schedule[i];
+    const double dwell = options.dwell_s_pattern[i % options.dwell_s_pattern.size()];
+    p.move_start_s += shift;
+    p.settled_s += shift;
+    p.dwell_end_s = p.settled_s + dwell;
+    shift += dwell - options.protocol.dwell_s;
+  }
+  return schedule;
+}
+
 void validate(const SimulationOptions& options) {
   validate(options.truth);
   validate(options.protocol);
@@ -51,6 +70,16 @@ void validate(const SimulationOptions& options) {
     throw std::invalid_argument(
         "simulation: dwell_s * rate_hz must give at least two samples per dwell");
   }
+  if (!options.noise_scale.allFinite() || options.noise_scale.minCoeff() < 0.0) {
+    throw std::invalid_argument("simulation: noise_scale must be finite and non-negative");
+  }
+  for (double d : options.dwell_s_pattern) {
+    if (!std::isfinite(d) || options.rate_hz * d < 2.0) {
+      throw std::invalid_argument(
+          "simulation: every dwell_s_pattern entry times rate_hz must give at least two "
+          "samples per dwell, got " + std::to_string(d) + " s");
+    }
+  }
 }
 
 namespace {
@@ -86,7 +115,7 @@ double TemperatureProfile::mean_over(double t0_s, double t1_s) const {
 }
 
 double simulated_reference_temperature_c(const SimulationOptions& options) {
-  const std::vector<ScheduledPosition> schedule = build_schedule(options.protocol);
+  const std::vector<ScheduledPosition> schedule = simulation_schedule(options);
   if (schedule.empty()) return options.temperature.start_c;
   double sum = 0.0;
   for (const ScheduledPosition& p : schedule)
@@ -142,10 +171,10 @@ double move_fraction(double t_s, double move_start_s, double settled_s) {
 
 PositionTable simulate_position_table(const SimulationOptions& options) {
   validate(options);
-  const std::vector<ScheduledPosition> schedule = build_schedule(options.protocol);
+  const std::vector<ScheduledPosition> schedule = simulation_schedule(options);
   std::mt19937_64 rng(options.seed);
   std::normal_distribution<double> normal(0.0, 1.0);
-  const double sigma = sample_noise_std(options);
+  const Eigen::Vector3d sigmas = sample_noise_stds(options);
   PositionTable table;
   table.time_origin_s = 0.0;
   table.rows.reserve(schedule.size());
@@ -177,6 +206,7 @@ PositionTable simulate_position_table(const SimulationOptions& options) {
     const Eigen::Vector3d truth = predict_outputs(options.truth, geom, options.local_gravity);
     const double n = static_cast<double>(row.n);
     for (int k = 0; k < 3; ++k) {
+      const double sigma = sigmas(k);
       row.mean(k) = truth(k) + sigma / std::sqrt(n) * normal(rng);
       if (row.n >= 2 && sigma > 0.0) {
         std::chi_squared_distribution<double> chi2(n - 1.0);
@@ -190,10 +220,10 @@ PositionTable simulate_position_table(const SimulationOptions& options) {
 
 Recording simulate_recording(const SimulationOptions& options) {
   validate(options);
-  const std::vector<ScheduledPosition> schedule = build_schedule(options.protocol);
+  const std::vector<ScheduledPosition> schedule = simulation_schedule(options);
   std::mt19937_64 rng(options.seed);
   std::normal_distribution<double> normal(0.0, 1.0);
-  const double sigma = sample_noise_std(options);
+  const Eigen::Vector3d sigma = sample_noise_stds(options);
   const double lag = timing_lag_s(options.truth);
 
   Recording recording;
@@ -240,7 +270,7 @@ Recording simulate_recording(const SimulationOptions& options) {
     sample.stamp_s = t_true + lag;  // timing_lag: the IMU stamps its samples late
     sample.outputs = predict_outputs(options.truth, geom, options.local_gravity);
     for (int i = 0; i < 3; ++i) {
-      double value = sample.outputs(i) + sigma * normal(rng);
+      double value = sample.outputs(i) + sigma(i) * normal(rng);
       if (options.quantization > 0.0)
         value = options.quantization * std::round(value / options.quantization);
       sample.outputs(i) = value;

@@ -2,6 +2,7 @@
 // rig model of model.h, with white noise and optional quantization. Seeded and reproducible.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
 
@@ -40,6 +41,12 @@ struct SimulationOptions {
   double rate_hz = 100.0;                            // IMU sample rate
   double noise_density = 300e-6 * kStandardGravity;  // (m/s^2)/sqrt(Hz), white
   double quantization = 0.0;                         // LSB in m/s^2; 0 = none
+  // Unequal accelerometers and dwells (tests of the weighting): accelerometer s has noise
+  // density noise_density * noise_scale(s); position i of the schedule (build_schedule order)
+  // dwells dwell_s_pattern[i % size] seconds instead of protocol.dwell_s (empty: all equal),
+  // the later positions shifted in time accordingly.
+  Eigen::Vector3d noise_scale = Eigen::Vector3d::Ones();
+  std::vector<double> dwell_s_pattern;
   double local_gravity = kStandardGravity;
   std::uint64_t seed = 1;
   TemperatureProfile temperature;  // constant 25 C and not recorded by default
@@ -49,8 +56,12 @@ struct SimulationOptions {
 // temperature (what reference_temperature_c() gives for noise-free readings).
 double simulated_reference_temperature_c(const SimulationOptions& options);
 
-// Per-sample noise standard deviation: noise_density * sqrt(rate_hz / 2).
+// Per-sample noise standard deviation: noise_density * sqrt(rate_hz / 2) (noise_scale = 1).
 double sample_noise_std(const SimulationOptions& options);
+// Per accelerometer: sample_noise_std * noise_scale(s).
+Eigen::Vector3d sample_noise_stds(const SimulationOptions& options);
+// build_schedule(protocol) with the dwells of dwell_s_pattern: the timeline both simulators use.
+std::vector<ScheduledPosition> simulation_schedule(const SimulationOptions& options);
 
 // Throws std::invalid_argument naming the field.
 void validate(const SimulationOptions& options);
