@@ -1,5 +1,6 @@
 #include "accel_intrinsics/ros/apply_calibration_node.h"
 
+#include <chrono>
 #include <cmath>
 
 #include "accel_intrinsics/io/atomic_file.h"
@@ -66,17 +67,48 @@ ApplyCalibrationNode::ApplyCalibrationNode(ros::NodeHandle nh, const ApplyCalibr
                                            const io::ApplyCalibration& calibration)
     : applier_(calibration) {
   pub_ = nh.advertise<sensor_msgs::Imu>(names::kCalibratedImuTopic, options.queue_size);
+  ros::CallbackQueueInterface* queue = nullptr;  // the node handle's
+  if (options.immediate) {
+    queue = &immediate_queue_;
+  } else if (options.coalesce_s > 0.0) {
+    own_queue_.reset(new ros::CallbackQueue);
+    queue = own_queue_.get();
+  }
   ros::SubscribeOptions sub_options = ros::SubscribeOptions::create<sensor_msgs::Imu>(
       names::kImuTopic, options.queue_size,
       boost::bind(&ApplyCalibrationNode::on_imu, this, boost::placeholders::_1), ros::VoidConstPtr(),
-      options.immediate ? &immediate_queue_ : nullptr);
+      queue);
   sub_options.transport_hints = ros::TransportHints().tcpNoDelay();
   immediate_queue_.set_coalesce_period(options.coalesce_s);
   sub_ = nh.subscribe(sub_options);
+  if (own_queue_) {
+    serving_ = true;
+    server_ = std::thread(&ApplyCalibrationNode::serve_coalesced, this, options.coalesce_s);
+  }
   ROS_INFO("apply_calibration: %s from %s (%s), %s -> %s", calibration.kind.c_str(),
            options.calibration_file.c_str(),
            applier_.noise_known() ? "with its noise: covariance filled" : "no noise figures",
            sub_.getTopic().c_str(), pub_.getTopic().c_str());
+}
+
+ApplyCalibrationNode::~ApplyCalibrationNode() {
+  sub_.shutdown();
+  if (server_.joinable()) {
+    serving_ = false;
+    server_.join();
+  }
+}
+
+void ApplyCalibrationNode::serve_coalesced(double coalesce_s) {
+  // callAvailable waits (woken by the first message after an idle spell) and handles what is
+  // there; the nap then lets the next messages pile up in the queue, handled together on the next
+  // round. Publishers adding to the queue meanwhile wake nobody: one wake-up per coalesce_s at
+  // most, for at most coalesce_s of added latency.
+  const auto nap = std::chrono::duration<double>(coalesce_s);
+  while (serving_) {
+    own_queue_->callAvailable(ros::WallDuration(0.1));
+    if (serving_) std::this_thread::sleep_for(nap);
+  }
 }
 
 void ApplyCalibrationNode::on_imu(const sensor_msgs::Imu::ConstPtr& msg) {

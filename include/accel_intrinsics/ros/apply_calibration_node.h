@@ -9,14 +9,23 @@
 // queue_size (default 1000, both ways), immediate (default true: the message is corrected and published in
 // roscpp's network thread, no hand-off to a spinner thread), coalesce_s (default 0.001: after an
 // idle spell the network thread naps this long so that the next messages are read in one go; 0
-// off; see immediate_callback_queue.h). A file that cannot be read refuses the start, naming it.
+// off; see immediate_callback_queue.h). With immediate false and coalesce_s > 0 the messages go
+// to a queue of the node's own, served by a thread of its own that, once woken by a message, naps
+// coalesce_s and then handles everything that came meanwhile: one wake-up per period instead of
+// one per message (the nodelet's default: it never naps in another nodelet's thread). With
+// immediate false and coalesce_s 0: the node handle's queue (the spinner's, or the nodelet
+// manager's). A file that cannot be read refuses the start, naming it.
 #pragma once
 
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
 
 #include <Eigen/Core>
+#include <atomic>
+#include <memory>
 #include <string>
+#include <thread>
 
 #include "accel_intrinsics/io/apply_calibration_file.h"
 #include "accel_intrinsics/ros/immediate_callback_queue.h"
@@ -52,12 +61,20 @@ class ApplyCalibrationNode {
  public:
   ApplyCalibrationNode(ros::NodeHandle nh, const ApplyCalibrationOptions& options,
                        const io::ApplyCalibration& calibration);
+  ~ApplyCalibrationNode();
+  ApplyCalibrationNode(const ApplyCalibrationNode&) = delete;
+  ApplyCalibrationNode& operator=(const ApplyCalibrationNode&) = delete;
 
  private:
   void on_imu(const sensor_msgs::Imu::ConstPtr& msg);
+  void serve_coalesced(double coalesce_s);
 
   CalibrationApplier applier_;
   ImmediateCallbackQueue immediate_queue_;
+  // immediate false, coalesce_s > 0: the node's own queue and the thread that serves it.
+  std::unique_ptr<ros::CallbackQueue> own_queue_;
+  std::atomic<bool> serving_{false};
+  std::thread server_;
   ros::Subscriber sub_;
   ros::Publisher pub_;
 };
