@@ -22,6 +22,8 @@ class ApplyCalibrationNodelet : public nodelet::Nodelet {
       // batches; coalesce_s 0: the manager's queue), never napping in someone else's thread
       // unless `immediate` is set.
       if (!getPrivateNodeHandle().hasParam("immediate")) options.immediate = false;
+      // In a manager the subscribers are in process: every message goes out on its own.
+      options.batch_output = false;
       node_.reset(new ApplyCalibrationNode(getNodeHandle(), options, calibration));
     } catch (const ParamError& e) {
       NODELET_FATAL("apply_calibration: refusing to start: %s", e.what());
