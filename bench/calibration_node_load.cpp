@@ -7,42 +7,19 @@
 #include <diagnostic_msgs/DiagnosticStatus.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
-#include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <map>
-#include <sstream>
 #include <string>
 
 #include "accel_intrinsics/GimbalCommand.h"
+#include "proc_stats.h"
 
 namespace {
 
-double cpu_seconds(int pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
-  std::string line;
-  std::getline(in, line);
-  // Fields after the command name (which is in parentheses and may hold spaces).
-  std::istringstream s(line.substr(line.rfind(')') + 2));
-  std::string field;
-  unsigned long utime = 0, stime = 0;
-  for (int i = 3; i <= 15 && s >> field; ++i) {
-    if (i == 14) utime = std::stoul(field);
-    if (i == 15) stime = std::stoul(field);
-  }
-  return static_cast<double>(utime + stime) / static_cast<double>(sysconf(_SC_CLK_TCK));
-}
-
-long rss_kb(int pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.rfind("VmRSS:", 0) == 0) return std::atol(line.c_str() + 6);
-  }
-  return -1;
-}
+using bench::cpu_seconds;
+using bench::rss_kb;
 
 std::map<std::string, std::string> status;
 void on_status(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {

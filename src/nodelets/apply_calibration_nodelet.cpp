@@ -17,10 +17,13 @@ class ApplyCalibrationNodelet : public nodelet::Nodelet {
     try {
       io::ApplyCalibration calibration;
       ApplyCalibrationOptions options = ApplyCalibrationOptions::load(getPrivateNodeHandle(), &calibration);
-      // In a manager the publisher's thread may be a driver's: keep the manager's queue unless
-      // asked otherwise, and never nap in someone else's thread.
+      // In a manager the publisher's thread may be a driver's: unless asked otherwise, messages
+      // go to the nodelet's own queue and thread (which naps coalesce_s to handle them in
+      // batches; coalesce_s 0: the manager's queue), never napping in someone else's thread
+      // unless `immediate` is set.
       if (!getPrivateNodeHandle().hasParam("immediate")) options.immediate = false;
-      options.coalesce_s = options.immediate ? options.coalesce_s : 0.0;
+      // In a manager the subscribers are in process: every message goes out on its own.
+      options.batch_output = false;
       node_.reset(new ApplyCalibrationNode(getNodeHandle(), options, calibration));
     } catch (const ParamError& e) {
       NODELET_FATAL("apply_calibration: refusing to start: %s", e.what());

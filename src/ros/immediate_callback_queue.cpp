@@ -5,7 +5,7 @@
 namespace accel_intrinsics {
 
 void ImmediateCallbackQueue::addCallback(const ros::CallbackInterfacePtr& callback, uint64_t) {
-  if (coalesce_s_ > 0.0) {
+  if (coalesce_s_ > 0.0 || on_wake_) {
     // roscpp reads messages already waiting in the socket back to back (a few microseconds
     // apart); a longer gap since the previous callback returned means this thread has just been
     // woken from its poll by a fresh message. Then nap, so that the next messages pile up in
@@ -13,7 +13,8 @@ void ImmediateCallbackQueue::addCallback(const ros::CallbackInterfacePtr& callba
     constexpr std::chrono::microseconds kIdleGap(20);
     const auto now = std::chrono::steady_clock::now();
     if (now - last_return_ > kIdleGap) {
-      std::this_thread::sleep_for(std::chrono::duration<double>(coalesce_s_));
+      if (on_wake_) on_wake_();
+      if (coalesce_s_ > 0.0) std::this_thread::sleep_for(std::chrono::duration<double>(coalesce_s_));
     }
   }
   // TryAgain only happens for callbacks that refuse concurrent calls; a subscription queue with
