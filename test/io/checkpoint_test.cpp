@@ -85,7 +85,7 @@ TEST(Checkpoint, TemperaturesAreKeptAndAnOldTableIsContinuedInItsOwnColumns) {
   core::CheckpointState state;
   state.steps = 6;
   {
-    CheckpointFiles files(dir.path, "t_");
+    CheckpointFiles files(dir.path(), "t_");
     for (std::uint32_t k = 0; k < 3; ++k) {
       core::DwellRecord r = row(core::Phase::Y, k);
       r.temperature_c = 21.5 + 0.25 * k;
@@ -95,7 +95,7 @@ TEST(Checkpoint, TemperaturesAreKeptAndAnOldTableIsContinuedInItsOwnColumns) {
     files.write_state(state);
   }
   {
-    CheckpointFiles files(dir.path, "t_");
+    CheckpointFiles files(dir.path(), "t_");
     const auto restored = files.load();
     ASSERT_TRUE(restored.has_value());
     ASSERT_EQ(restored->table.rows.size(), 3u);
@@ -105,7 +105,7 @@ TEST(Checkpoint, TemperaturesAreKeptAndAnOldTableIsContinuedInItsOwnColumns) {
     core::DwellRecord r = row(core::Phase::Y, 3);
     r.temperature_c = 23.0;
     files.append_row(r);
-    const auto again = CheckpointFiles(dir.path, "t_").load();
+    const auto again = CheckpointFiles(dir.path(), "t_").load();
     ASSERT_TRUE(again.has_value());
     ASSERT_EQ(again->table.rows.size(), 4u);
     EXPECT_EQ(again->table.rows[3].temperature_c, 23.0);
@@ -114,16 +114,16 @@ TEST(Checkpoint, TemperaturesAreKeptAndAnOldTableIsContinuedInItsOwnColumns) {
   // An older checkpoint (no temperature column) continued by a run that now has temperatures.
   TempDir old_dir;
   {
-    CheckpointFiles files(old_dir.path, "o_");
+    CheckpointFiles files(old_dir.path(), "o_");
     files.append_row(row(core::Phase::X, 0));  // no temperature: no column
     files.write_state(state);
   }
-  CheckpointFiles files(old_dir.path, "o_");
+  CheckpointFiles files(old_dir.path(), "o_");
   ASSERT_TRUE(files.load().has_value());
   core::DwellRecord r = row(core::Phase::X, 1);
   r.temperature_c = 30.0;
   files.append_row(r);
-  const auto restored = CheckpointFiles(old_dir.path, "o_").load();
+  const auto restored = CheckpointFiles(old_dir.path(), "o_").load();
   ASSERT_TRUE(restored.has_value());  // still one readable table
   ASSERT_EQ(restored->table.rows.size(), 2u);
   EXPECT_FALSE(restored->table.rows[1].has_temperature());

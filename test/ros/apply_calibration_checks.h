@@ -92,7 +92,9 @@ TEST(ApplyCalibration, RefusesAFileItCannotRead) {
   const int status = ::pclose(pipe);
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_NE(WEXITSTATUS(status), 0) << output;
-  if (!kStartAsNodelet) EXPECT_EQ(WEXITSTATUS(status), 2) << output;
+  if (!kStartAsNodelet) {
+    EXPECT_EQ(WEXITSTATUS(status), 2) << output;
+  }
   EXPECT_NE(output.find("/apply_bad/calibration_file"), std::string::npos) << output;
   EXPECT_NE(output.find(missing), std::string::npos) << output;
 }
@@ -145,7 +147,6 @@ TEST(ApplyCalibration, CorrectedDwellMeansEqualTheTrueForce) {
 
   // Dwells: SETTLED to the next MOVING or DONE.
   const Eigen::Matrix3d P = report.certificate.S.inverse();
-  const Eigen::Vector3d O = report.certificate.O;
   const double g = report.certificate.local_gravity;
   const Eigen::Vector3d sigma = report.noise->sample_std;
   const Eigen::Matrix3d stated = P * sigma.cwiseAbs2().asDiagonal() * P.transpose();

@@ -145,6 +145,8 @@ TEST(Conversions, StatusMessageCarriesTheRunState) {
   const auto running = ai::to_status_msg(st, "collecting", "", 13.0, "/calibration");
   EXPECT_EQ(running.level, diagnostic_msgs::DiagnosticStatus::OK);
   for (const auto& kv : running.values) {
-    if (kv.key == "state") EXPECT_EQ(kv.value, "COLLECTING");
+    if (kv.key == "state") {
+      EXPECT_EQ(kv.value, "COLLECTING");
+    }
   }
 }

@@ -22,30 +22,18 @@
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/ros/bag_input.h"
 #include "accel_intrinsics/ros/offline_fit.h"
+#include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
 
 namespace {
 
+using accel_intrinsics::test_support::read_file;
+using accel_intrinsics::test_support::TempDir;
+
 constexpr double kG = 9.80665;
 constexpr double kPi = 3.14159265358979323846;
-
-class TempDir {
- public:
-  TempDir() {
-    char templ[] = "/tmp/temperature_bag_test_XXXXXX";
-    path_ = ::mkdtemp(templ);
-  }
-  ~TempDir() {
-    if (!path_.empty() && std::getenv("KEEP_TEST_FILES") == nullptr)
-      std::system(("rm -rf '" + path_ + "'").c_str());
-  }
-  std::string file(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
 
 std::string first_line(const std::string& path) {
   std::ifstream in(path);
