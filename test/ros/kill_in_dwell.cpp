@@ -81,15 +81,9 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
   ros::Subscriber s = nh.subscribe("/calibration/status", 10, on_status);
   ros::Subscriber c = nh.subscribe("/gimbal/command", 1000, on_cmd);
   ros::Subscriber i = nh.subscribe("/imu/data_raw", 100000, on_imu);
-  ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
-  ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(60.0)));
   ASSERT_TRUE(ros::service::waitForService("/sim_clock/pause", ros::Duration(60.0)));
-  ros::WallDuration(1.0).sleep();  // subscriptions connected
-
-  std_srvs::Trigger reset, start;
-  ASSERT_TRUE(ros::service::call("/calibration/reset", reset));
-  ASSERT_TRUE(ros::service::call("/gimbal_controller/start", start));
-  ASSERT_TRUE(start.response.success) << start.response.message;
+  stand_checks::reset_and_start();
+  if (HasFatalFailure()) return;
 
   // The SETTLED of the chosen position: hold the clock there (the stand stops inside the dwell).
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);

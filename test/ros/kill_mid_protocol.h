@@ -80,15 +80,8 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   ros::Subscriber p = nh.subscribe("/gimbal_controller/progress", 10, on_progress);
   ros::Subscriber s = nh.subscribe("/calibration/status", 10, on_status);
   ros::Subscriber c = nh.subscribe("/gimbal/command", 100, on_command);
-  ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
-  ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(60.0)));
-  ros::WallDuration(1.0).sleep();  // subscriptions connected
-
-  // A clean start (no checkpoint of an earlier test run), then the protocol.
-  std_srvs::Trigger reset, start;
-  ASSERT_TRUE(ros::service::call("/calibration/reset", reset));
-  ASSERT_TRUE(ros::service::call("/gimbal_controller/start", start));
-  ASSERT_TRUE(start.response.success) << start.response.message;
+  stand_checks::reset_and_start();
+  if (::testing::Test::HasFatalFailure()) return;
 
   // Mid-protocol: SIGKILL.
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);

@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include <std_srvs/Trigger.h>
+
 #include "accel_intrinsics/GetIntrinsics.h"
 
 namespace stand_checks {
@@ -138,6 +140,18 @@ inline void supervise_and_check(const std::vector<std::string>& namespaces, cons
               rig["result"]["positions"]["z"].get<int>());
   }
   std::printf("%s\n", r.output.c_str());
+}
+
+// Waits for the stand's services, then starts clean: calibration/reset (no checkpoint of an
+// earlier test run) and gimbal_controller/start.
+inline void reset_and_start() {
+  ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
+  ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(60.0)));
+  ros::WallDuration(1.0).sleep();  // subscriptions connected
+  std_srvs::Trigger reset, start;
+  ASSERT_TRUE(ros::service::call("/calibration/reset", reset));
+  ASSERT_TRUE(ros::service::call("/gimbal_controller/start", start));
+  ASSERT_TRUE(start.response.success) << start.response.message;
 }
 
 inline accel_intrinsics::GetIntrinsics::Response get_intrinsics(const std::string& ns) {

@@ -27,16 +27,6 @@ void on_command(const GimbalCommand::ConstPtr& msg) {
 }
 bool exists(const std::string& path) { return ::access(path.c_str(), F_OK) == 0; }
 
-void start_stand() {
-  ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
-  ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(60.0)));
-  ros::WallDuration(1.0).sleep();  // subscriptions connected
-  std_srvs::Trigger reset, start;
-  ASSERT_TRUE(ros::service::call("/calibration/reset", reset));
-  ASSERT_TRUE(ros::service::call("/gimbal_controller/start", start));
-  ASSERT_TRUE(start.response.success) << start.response.message;
-}
-
 accel_intrinsics::GetIntrinsics::Response wait_for_result(double timeout_s) {
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
   accel_intrinsics::GetIntrinsics srv;
@@ -75,7 +65,8 @@ TEST(StandPromises, ResumeParamsStartTheRunThereAndResetDeletesTheCheckpoint) {
   pnh.getParam("resume_step", resume_step);
   pnh.getParam("timeout_s", timeout_s);
   ros::Subscriber c = nh.subscribe("/gimbal/command", 1000, on_command);
-  start_stand();
+  stand_checks::reset_and_start();
+  if (HasFatalFailure()) return;
   const std::string table = output_dir + "/position_table.csv";
   const std::string state = output_dir + "/calibration_state.yaml";
   // Two dwells checkpointed.
@@ -125,7 +116,8 @@ TEST(StandPromises, SiteLatitudeAndHeightSetTheGravityOfTheFit) {
   ASSERT_TRUE(pnh.getParam("height_m", height_m));
   ASSERT_TRUE(ros::param::get("/accelerometer/local_gravity", device_gravity));
   pnh.getParam("timeout_s", timeout_s);
-  start_stand();
+  stand_checks::reset_and_start();
+  if (HasFatalFailure()) return;
   const accel_intrinsics::GetIntrinsics::Response res = wait_for_result(timeout_s);
   ASSERT_TRUE(res.success) << res.message;
   const double g_site = wgs84_normal_gravity(latitude_deg, height_m);
@@ -152,7 +144,8 @@ TEST(StandPromises, Eq4ModelOnTheLiveStand) {
   int steps = 6;
   pnh.getParam("timeout_s", timeout_s);
   pnh.getParam("steps", steps);
-  start_stand();
+  stand_checks::reset_and_start();
+  if (HasFatalFailure()) return;
   const accel_intrinsics::GetIntrinsics::Response res = wait_for_result(timeout_s);
   ASSERT_TRUE(res.success) << res.message;
   EXPECT_EQ(res.result.model, "eq4");
