@@ -13,11 +13,13 @@
 
 #include "accel_intrinsics/core/discrepancy.h"
 #include "accel_intrinsics/core/simulator.h"
+#include "../support/statistical_bounds.h"
 #include "random_device.h"
 
 namespace accel_intrinsics {
 namespace core {
 namespace {
+
 
 using testing_devices::random_device;
 
@@ -80,8 +82,13 @@ std::string describe(const AnalysisResult& a) {
 
 // Hides `kind` at 3, 5 and 10 times its detection threshold on closing-position runs (every
 // target once, both signs) and checks it is named as itself, never as the other of the pair.
+// The recovery band and the upper chi-square bound are quantiles at 1e-3 / 12 (two checks in
+// each of the 3 trials of the 2 tests; issue 15: together they fail by chance in fewer than 1e-3
+// runs, where 3 std and the 99 % band would in about 4 %).
 void expect_named_not_confused(EffectKind kind, EffectKind other, std::uint64_t seed0) {
   const double multiples[] = {3.0, 5.0, 10.0};
+  const double tail = 1e-3 / 12.0;
+  const double k = statistical_bounds::normal_k(tail);
   for (int trial = 0; trial < 3; ++trial) {
     SimulationOptions so = closing_simulation(seed0 + static_cast<std::uint64_t>(trial));
     const int target = trial;
@@ -96,10 +103,11 @@ void expect_named_not_confused(EffectKind kind, EffectKind other, std::uint64_t 
     ASSERT_FALSE(a.effects.empty());
     const NamedEffect& first = a.effects.front();
     EXPECT_EQ(first.effect.label(), hidden.label());
-    EXPECT_LE(std::abs(first.effect.value - hidden.value), 3.0 * first.std);
+    EXPECT_LE(std::abs(first.effect.value - hidden.value), k * first.std);
     EXPECT_FALSE(named_kind(a, other));
     EXPECT_FALSE(drift_and_scale_ambiguous(a));
-    EXPECT_LE(a.after.summary.reduced_chi2, a.after.summary.band99_high);
+    EXPECT_LE(a.after.summary.chi2,
+              statistical_bounds::chi2_band(a.after.summary.dof, tail).second);
   }
 }
 

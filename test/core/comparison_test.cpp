@@ -14,11 +14,13 @@
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/simulator.h"
+#include "../support/statistical_bounds.h"
 #include "random_device.h"
 
 namespace accel_intrinsics {
 namespace core {
 namespace {
+
 
 // The nine parameters with U = 2 x the fit's standard uncertainty (type A: the simulation has no
 // rig errors, so type A is the whole uncertainty).
@@ -71,18 +73,21 @@ TEST(Comparison, SameDeviceInDifferentMountingsIsConsistentIn95PercentOfPairs) {
   }
   // k = 2 covers 95.45 % of a normal E_n, so the issue's "at least 95 % of 200 pairs" sits at the
   // nominal rate: per parameter the count is binomial(200, 0.9545), 190.9 +- 2.9, and asserting
-  // >= 190 for each of nine parameters would fail by chance about half the time. Asserted instead:
-  // pooled over the nine parameters (1800 comparisons, sd 0.5 %) at least 95 %, and each
-  // parameter at least 90 % (3.7 sd below nominal). With PAIRS=3000 in the environment every
-  // parameter came out between 95.1 % and 96.2 % (2853..2887 of 3000), all nine at once in 67 %.
+  // >= 190 for each of nine parameters would fail by chance about half the time. Asserted: each
+  // parameter's count at least the binomial(pairs, 0.95) quantile at 1e-3 / 9, so a comparison
+  // that covers at least 95 % fails this test in fewer than 1e-3 runs whatever the seed (issue
+  // 15). The pooled count over the nine parameters is only printed: the nine E_n of one pair
+  // share two fits, so the pooled count is not binomial, and a pooled ">= 95 %" failed for 2 of
+  // 40 other base seeds. With PAIRS=3000 in the environment every parameter came out between
+  // 95.1 % and 96.2 % (2853..2887 of 3000), all nine at once in 67 %.
+  const int lowest = statistical_bounds::binomial_lower(pairs, 0.95, 1e-3 / kComparedParameters);
   int pooled = 0;
   for (int p = 0; p < kComparedParameters; ++p) {
     pooled += within[p];
-    EXPECT_GE(within[p], (90 * pairs + 99) / 100) << kComparisonParameterNames[p];
+    EXPECT_GE(within[p], lowest) << kComparisonParameterNames[p];
     std::cout << "[ comparison ] " << kComparisonParameterNames[p] << ": |E_n| <= 1 in "
-              << within[p] << " of " << pairs << " pairs\n";
+              << within[p] << " of " << pairs << " pairs (bound " << lowest << ")\n";
   }
-  EXPECT_GE(pooled, (95 * kComparedParameters * pairs + 99) / 100);
   std::cout << "[ comparison ] pooled: " << pooled << " of " << kComparedParameters * pairs << "\n";
   std::cout << "[ comparison ] all nine within in " << all_within << " of " << pairs << " pairs\n";
 }

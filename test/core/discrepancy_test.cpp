@@ -1,7 +1,9 @@
 // Discrepancy analysis on data with hidden effects (issue 5): random devices, mountings, noise
 // levels and seeds; each hidden effect at several times its detection threshold must be named
-// with the right name and target, recovered within 3 sigma, and the reduced chi-square must come
-// back inside its 99 % band. Effect-free data must name nothing in at least 95 % of 200 seeds.
+// with the right name and target, recovered within k sigma, and the chi-square must come back
+// inside its band (k and the band from the normal and chi-square quantiles, Bonferroni over the
+// trials, so that a correct analysis fails a test in fewer than 1e-3 runs). Effect-free data
+// must name something at the rate alpha, checked against a binomial bound.
 #include "accel_intrinsics/core/discrepancy.h"
 
 #include <gtest/gtest.h>
@@ -16,11 +18,13 @@
 
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/simulator.h"
+#include "../support/statistical_bounds.h"
 #include "random_device.h"
 
 namespace accel_intrinsics {
 namespace core {
 namespace {
+
 
 using testing_devices::random_device;
 
@@ -48,6 +52,28 @@ const CandidateScore* find_candidate(const ScreeningStep& step, EffectKind kind,
     if (c.effect.kind == kind && c.effect.target == target) return &c;
   }
   return nullptr;
+}
+
+// Per-trial bands of the hidden-effect tests (issue 15 item 6): a fixed 3-sigma recovery band and
+// the analysis' own 99 % chi-square band fail together in about 40 % of base seeds over the 42
+// trials of DiscrepancyHiddenEffect (measured with 40 base seeds). Instead the bands are quantiles
+// at tail / checks, so that all trials of a test together fail by chance in fewer than 1e-3 runs:
+// each trial makes `checks_per_trial` of them (a recovery check, chi-square low and high).
+struct TrialBands {
+  double k = 0.0;  // |estimate - truth| <= k std
+  double tail = 0.0;
+};
+TrialBands trial_bands(int trials, int checks_per_trial) {
+  TrialBands b;
+  b.tail = 1e-3 / static_cast<double>(checks_per_trial * trials);
+  b.k = statistical_bounds::normal_k(b.tail);
+  return b;
+}
+// The gap after the fit: chi2 ~ chi2(dof) under noise alone, one-sided tail `tail` on each side.
+void expect_chi2_in_band(const GapSummary& g, double tail) {
+  const auto band = statistical_bounds::chi2_band(g.dof, tail);
+  EXPECT_GE(g.chi2, band.first) << "dof " << g.dof;
+  EXPECT_LE(g.chi2, band.second) << "dof " << g.dof;
 }
 
 std::string describe(const AnalysisResult& a) {
@@ -81,6 +107,8 @@ TEST_P(DiscrepancyHiddenEffect, NamedRecoveredAndGapClosed) {
   const HiddenCase hc = GetParam();
   // Six trials: every target twice, 3, 5 and 10 times the detection threshold, both signs.
   const double multiples[] = {3.0, 5.0, 10.0, 3.0, 5.0, 10.0};
+  // The bands over all 7 x 6 trials of the suite (every instance spends 1/7 of 1e-3).
+  const TrialBands bands = trial_bands(7 * 6, 3);
   int trial = 0;
   for (double multiple : multiples) {
     const std::uint64_t seed =
@@ -101,9 +129,8 @@ TEST_P(DiscrepancyHiddenEffect, NamedRecoveredAndGapClosed) {
     ASSERT_NE(e, nullptr);
     EXPECT_LE(e->p_value, 0.05);
     EXPECT_GT(e->std, 0.0);
-    EXPECT_LE(std::abs(e->effect.value - hidden.value), 3.0 * e->std);
-    EXPECT_GE(a.after.summary.reduced_chi2, a.after.summary.band99_low);
-    EXPECT_LE(a.after.summary.reduced_chi2, a.after.summary.band99_high);
+    EXPECT_LE(std::abs(e->effect.value - hidden.value), bands.k * e->std);
+    expect_chi2_in_band(a.after.summary, bands.tail);
     EXPECT_LT(a.after.summary.chi2, a.before.summary.chi2);
     ++trial;
   }
@@ -123,10 +150,21 @@ INSTANTIATE_TEST_SUITE_P(Discrepancy, DiscrepancyHiddenEffect,
                            return name;
                          });
 
-TEST(Discrepancy, EffectFreeDataNamesNothingIn95PercentOf200Seeds) {
+TEST(Discrepancy, EffectFreeDataFalseAlarmRateWithinAlpha) {
+  // Each effect-free run names something with probability alpha (AnalysisOptions: 0.025, half
+  // the 5 % the requirement allows), up to the Monte Carlo error of the max-T critical values
+  // (draws per step; allowance 4 standard errors of a tail probability alpha). The count over
+  // 200 runs is then at most binomial(200, p) and must stay below its 1 - 1e-3 quantile (a fixed
+  // "at most 10" failed by chance in about 1 % of base seeds). A procedure at the 5 % of the
+  // requirement would exceed the bound (15) in about 1 of 23 base seeds, one at 10 % in 6 of 7.
+  const AnalysisOptions defaults;
+  const double p = defaults.alpha + 4.0 * std::sqrt(defaults.alpha * (1.0 - defaults.alpha) /
+                                                    defaults.monte_carlo_draws);
+  const int runs = 200;
+  const int bound = statistical_bounds::binomial_upper(runs, p, 1e-3);
   int runs_naming_something = 0;
   int twin_checks = 0;
-  for (int seed = 0; seed < 200; ++seed) {
+  for (int seed = 0; seed < runs; ++seed) {
     const SimulationOptions so =
         random_simulation(10000 + static_cast<std::uint64_t>(seed), seed % 4 == 0);
     const PositionTable table = simulate_position_table(so);
@@ -143,12 +181,14 @@ TEST(Discrepancy, EffectFreeDataNamesNothingIn95PercentOf200Seeds) {
   }
   EXPECT_EQ(twin_checks, 4);
   std::cout << "[ INFO     ] " << runs_naming_something
-            << " of 200 effect-free runs named an effect\n";
-  EXPECT_LE(runs_naming_something, 10)
-      << runs_naming_something << " of 200 effect-free runs named an effect";
+            << " of " << runs << " effect-free runs named an effect (bound " << bound << ")\n";
+  EXPECT_LE(runs_naming_something, bound)
+      << runs_naming_something << " of " << runs << " effect-free runs named an effect";
 }
 
 TEST(Discrepancy, TwoHiddenEffectsAreBothNamed) {
+  // Per trial two recovery checks and the chi-square band.
+  const TrialBands bands = trial_bands(3, 4);
   for (int trial = 0; trial < 3; ++trial) {
     SimulationOptions so = random_simulation(777 + static_cast<std::uint64_t>(trial));
     const int s = trial % 3, p = (trial + 1) % 3;
@@ -162,9 +202,9 @@ TEST(Discrepancy, TwoHiddenEffectsAreBothNamed) {
     const NamedEffect* o = find_named(a, EffectKind::AngleOffset, p);
     ASSERT_NE(q, nullptr);
     ASSERT_NE(o, nullptr);
-    EXPECT_LE(std::abs(q->effect.value - so.truth.effects[0].value), 3.0 * q->std);
-    EXPECT_LE(std::abs(o->effect.value - so.truth.effects[1].value), 3.0 * o->std);
-    EXPECT_LE(a.after.summary.reduced_chi2, a.after.summary.band99_high);
+    EXPECT_LE(std::abs(q->effect.value - so.truth.effects[0].value), bands.k * q->std);
+    EXPECT_LE(std::abs(o->effect.value - so.truth.effects[1].value), bands.k * o->std);
+    expect_chi2_in_band(a.after.summary, bands.tail);
     EXPECT_GT(a.before.summary.reduced_chi2, a.after.summary.reduced_chi2);
   }
 }
