@@ -17,7 +17,7 @@
 #                      "calibration_node analysis_node:time_scale:=3.0 kill_in_dwell"; "" = none)
 #   ACCEL_TSAN_UNIT=0  skip ros_unit_tests
 #   ACCEL_CMAKE_ARGS   extra cmake arguments (appended after -DACCEL_TSAN=ON)
-# Example: ACCEL_TSAN_WS=/tmp/ws_tsan ACCEL_JOBS=2 tools/tsan.sh
+# Example: ACCEL_TSAN_WS=/tmp/ws_tsan ACCEL_JOBS=2 bash tools/tsan.sh
 export ACCEL_WS="${ACCEL_TSAN_WS:-$HOME/accel_ws_tsan}"
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 export ACCEL_CMAKE_ARGS="-DACCEL_TSAN=ON -DACCEL_SANITIZE=OFF ${ACCEL_CMAKE_ARGS:-}"
