@@ -42,6 +42,17 @@ std::string write_table(const TempDir& dir) {
   return path;
 }
 
+// offline_fit's JSON result of write_table's table; empty (and a test failure) when it fails.
+std::string fitted_result(const TempDir& dir) {
+  ai::OfflineFitArguments fit;
+  fit.csv = write_table(dir);
+  fit.json_out = dir.file("result.json");
+  std::ostringstream out, err;
+  const int code = ai::run_offline_fit(fit, out, err);
+  EXPECT_EQ(code, 0) << err.str();
+  return code == 0 ? fit.json_out : std::string();
+}
+
 Eigen::Matrix3d rows_of(const nlohmann::json& j) {
   Eigen::Matrix3d m;
   for (int r = 0; r < 3; ++r)
@@ -90,31 +101,25 @@ TEST(OfflineFitExport, BadSpecIsACommandLineErrorAndWritesNothing) {
 
 TEST(ExportCalibration, FromSavedResult) {
   TempDir dir;
-  ai::OfflineFitArguments fit;
-  fit.csv = write_table(dir);
-  fit.json_out = dir.file("result.json");
-  std::ostringstream out, fit_err;
-  ASSERT_EQ(ai::run_offline_fit(fit, out, fit_err), 0) << fit_err.str();
+  const std::string result_json = fitted_result(dir);
+  ASSERT_FALSE(result_json.empty());
 
-  ai::ExportCalibrationArguments args{fit.json_out, "ardupilot", dir.file("a.param")};
+  ai::ExportCalibrationArguments args{result_json, "ardupilot", dir.file("a.param")};
   std::ostringstream err;
   EXPECT_EQ(ai::run_export_calibration(args, err), 0) << err.str();
   EXPECT_NE(err.str().find("export_calibration: note: ardupilot export: largest error"),
             std::string::npos);
   const std::string text = read_file(args.out);
   EXPECT_NE(text.find("INS_ACCSCAL_X,"), std::string::npos);
-  EXPECT_NE(text.find("source result: " + fit.json_out), std::string::npos);
+  EXPECT_NE(text.find("source result: " + result_json), std::string::npos);
 }
 
 TEST(ExportCalibration, RefusesAResultThatFailsTheQualityGate) {
   TempDir dir;
-  ai::OfflineFitArguments fit;
-  fit.csv = write_table(dir);
-  fit.json_out = dir.file("result.json");
-  std::ostringstream out, fit_err;
-  ASSERT_EQ(ai::run_offline_fit(fit, out, fit_err), 0) << fit_err.str();
+  const std::string result_json = fitted_result(dir);
+  ASSERT_FALSE(result_json.empty());
   // The same result as a run that failed the gate would have stored it.
-  nlohmann::json result = nlohmann::json::parse(read_file(fit.json_out));
+  nlohmann::json result = nlohmann::json::parse(read_file(result_json));
   result["quality"] = {{"pass", false}, {"reasons", {"reduced chi-square 812 is far above 1"}}};
   std::ofstream(dir.file("failed.json")) << result.dump(2);
 
