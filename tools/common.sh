@@ -28,3 +28,16 @@ build_quietly() {
   fi
   echo "[build] done"
 }
+
+# Runs every test of the built workspace (gtests, then rostests) and prints the closing line
+# "N passed, N failed"; returns 1 when anything failed. Results land in build/test_results.
+run_all_tests() {
+  cd "$ACCEL_WS"
+  source_workspace
+  rm -rf "$ACCEL_WS/build/test_results/accel_intrinsics"
+  # run_tests exits 0 even when tests fail; catkin_test_results gives the verdict below.
+  catkin_make -DPYTHON_EXECUTABLE=/usr/bin/python3 run_tests_accel_intrinsics -j1 2>&1 \
+    | tee "$ACCEL_WS/run_tests.log" \
+    | grep -E "^\[ *(RUN|  OK|  FAILED|  PASSED|==========) |FAILURE|ERROR|Traceback" || true
+  python3 "$REPO_DIR/tools/summarize_tests.py" "$ACCEL_WS/build/test_results"
+}
