@@ -152,6 +152,11 @@ void SerialGimbalDriver::move_to(const GimbalTarget& target, double t_s) {
   if (target.phase != target_.phase) history_.clear();
   target_ = target;
   target_positions_ = options_.axis_map.positions_deg(target.phase, target.angle_rad);
+  // The stage rests where it was last polled until this command goes out at t_s. Without this
+  // sample the orientation between the last poll and t_s would interpolate toward the first
+  // position polled in motion, and the tf filled in up to the MOVING stamp would show the move
+  // early (the clock check then saw the IMU "early" on a loaded machine).
+  if (polled_) record_position(t_s);
   moving_ = true;
   at_rest_since_s_ = -1.0;
   send_move(target_positions_);
@@ -174,19 +179,22 @@ void SerialGimbalDriver::poll(double t_s) {
   last_poll_ = std::chrono::steady_clock::now();
   polled_ = true;
   last_status_ = poll_status();
-  const PhaseAxes& p = options_.axis_map.phases[core::index(target_.phase)];
-  const auto it = last_status_.position.find(p.axis);
-  if (it != last_status_.position.end()) {
-    if (!history_.empty() && t_s < history_.back().t_s) history_.clear();  // clock jumped back
-    history_.push_back(Sample{t_s, options_.axis_map.alpha_rad(target_.phase, it->second)});
-    while (history_.size() > 2000) history_.pop_front();
-  }
+  record_position(t_s);
   if (!moving_) return;
   if (last_status_.at_rest && at_target(last_status_)) {
     if (at_rest_since_s_ < 0.0) at_rest_since_s_ = t_s;
   } else {
     at_rest_since_s_ = -1.0;
   }
+}
+
+void SerialGimbalDriver::record_position(double t_s) {
+  const PhaseAxes& p = options_.axis_map.phases[core::index(target_.phase)];
+  const auto it = last_status_.position.find(p.axis);
+  if (it == last_status_.position.end()) return;
+  if (!history_.empty() && t_s < history_.back().t_s) history_.clear();  // clock jumped back
+  history_.push_back(Sample{t_s, options_.axis_map.alpha_rad(target_.phase, it->second)});
+  while (history_.size() > 2000) history_.pop_front();
 }
 
 void SerialGimbalDriver::update(double t_s) {

@@ -192,6 +192,37 @@ TEST(Grbl, ReportsTheMotionWhileMoving) {
   ASSERT_TRUE(wait_settled(driver));
 }
 
+// The stage rests until the move command goes out: the orientation reported for any instant
+// before it is the rest position, however late the first poll in motion comes (stamps here are
+// the node clock's, 100 s ahead of the wall clock the settling used). Before, the orientation
+// interpolated from the last rest poll toward the first position polled in motion, so the tf the
+// controller fills in up to a MOVING stamp showed the move early.
+TEST(Grbl, ReportsNoMotionBeforeTheMoveCommand) {
+  ai::EmulatorOptions e = fast();
+  e.rate_deg_s = 1.0e6;  // the move is over before the poll that follows the command
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  ai::GrblDriver driver(two_axis(emu->port(), "X", "Y"));
+  driver.move_to(target(Phase::X, 0.0), wall_s());
+  ASSERT_TRUE(wait_settled(driver));
+  auto alpha_at = [&](double t_s) {
+    const Eigen::Vector3d f =
+        driver.orientation(t_s).world_dut().transpose() * Eigen::Vector3d::UnitZ();
+    return std::atan2(f.y(), f.z()) * 180.0 / ai::core::kPi;
+  };
+  const double rest_s = wall_s() + 100.0;
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  driver.update(rest_s);  // polled at rest
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const double command_s = rest_s + 1.0;
+  driver.move_to(target(Phase::X, 90.0), command_s);
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  driver.update(command_s + 0.1);
+  EXPECT_NEAR(alpha_at(command_s + 0.1), 90.0, 0.01);  // the move was seen
+  for (double t : {rest_s, rest_s + 0.5, command_s - 1e-6}) {
+    EXPECT_NEAR(alpha_at(t), 0.0, 1e-9) << "at " << t - command_s << " s from the command";
+  }
+}
+
 TEST(Grbl, HomesAtStartOrRefusesAnAlarm) {
   ai::EmulatorOptions e = fast();
   e.needs_homing = true;

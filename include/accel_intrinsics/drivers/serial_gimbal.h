@@ -115,6 +115,8 @@ class SerialGimbalDriver : public GimbalDriver {
  private:
   bool at_target(const DeviceStatus& status) const;
   void poll(double t_s);
+  // Appends the last polled position of the target phase's axis, stamped t_s, to the history.
+  void record_position(double t_s);
 
   struct Sample {
     double t_s;
