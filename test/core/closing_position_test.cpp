@@ -13,6 +13,7 @@
 
 #include "accel_intrinsics/core/discrepancy.h"
 #include "accel_intrinsics/core/simulator.h"
+#include "../support/analysis_checks.h"
 #include "../support/statistical_bounds.h"
 #include "random_device.h"
 
@@ -20,8 +21,10 @@ namespace accel_intrinsics {
 namespace core {
 namespace {
 
-
 using testing_devices::random_device;
+using analysis_checks::describe;
+using analysis_checks::detection_threshold;
+using analysis_checks::find_candidate;
 
 SimulationOptions closing_simulation(std::uint64_t seed, std::uint32_t steps = 24,
                                      bool two_way = false) {
@@ -35,21 +38,6 @@ SimulationOptions closing_simulation(std::uint64_t seed, std::uint32_t steps = 2
   so.protocol.two_way = two_way;
   so.seed = seed * 7 + 3;
   return so;
-}
-
-const CandidateScore* find_candidate(const ScreeningStep& step, EffectKind kind, int target) {
-  for (const CandidateScore& c : step.candidates) {
-    if (c.effect.kind == kind && c.effect.target == target) return &c;
-  }
-  return nullptr;
-}
-
-// Detection threshold of kind[target] for this device and protocol, from the effect-free run.
-double detection_threshold(const SimulationOptions& so, EffectKind kind, int target) {
-  const AnalysisResult clean = analyze(simulate_position_table(so));
-  const CandidateScore* c = find_candidate(clean.steps.front(), kind, target);
-  EXPECT_NE(c, nullptr);
-  return c ? c->detection_threshold : 0.0;
 }
 
 bool named_kind(const AnalysisResult& a, EffectKind kind) {
@@ -67,17 +55,6 @@ bool drift_and_scale_ambiguous(const AnalysisResult& a) {
     if (has("offset_drift[") && has("angle_scale[")) return true;
   }
   return false;
-}
-
-std::string describe(const AnalysisResult& a) {
-  std::ostringstream os;
-  os << "named:";
-  for (const NamedEffect& e : a.effects) {
-    os << ' ' << e.effect.label() << '=' << e.effect.value << "+-" << e.std << " (closest "
-       << e.closest_alternative << ", |corr| " << e.closest_correlation << ')';
-  }
-  os << "; ambiguous groups " << a.ambiguous.size();
-  return os.str();
 }
 
 // Hides `kind` at 3, 5 and 10 times its detection threshold on closing-position runs (every

@@ -18,6 +18,8 @@
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/simulator.h"
+#include "../support/analysis_checks.h"
+#include "../support/statistical_bounds.h"
 #include "random_device.h"
 
 namespace accel_intrinsics {
@@ -25,6 +27,11 @@ namespace core {
 namespace {
 
 using testing_devices::random_device;
+using analysis_checks::describe;
+using analysis_checks::detection_threshold;
+using analysis_checks::find_candidate;
+using analysis_checks::find_named;
+using analysis_checks::ambiguous_pair;
 
 double run_duration_s(const SimulationOptions& so) {
   return build_schedule(so.protocol).back().dwell_end_s;
@@ -47,54 +54,6 @@ SimulationOptions warm_up_and_cool_down(std::uint64_t seed, double rise_k = 3.0,
   so.temperature.sine_period_s = 2.0 * run_duration_s(so);
   so.temperature.noise_c = 0.05;
   return so;
-}
-
-const NamedEffect* find_named(const AnalysisResult& a, EffectKind kind, int target) {
-  for (const NamedEffect& e : a.effects) {
-    if (e.effect.kind == kind && e.effect.target == target) return &e;
-  }
-  return nullptr;
-}
-
-const CandidateScore* find_candidate(const ScreeningStep& step, EffectKind kind, int target) {
-  for (const CandidateScore& c : step.candidates) {
-    if (c.effect.kind == kind && c.effect.target == target) return &c;
-  }
-  return nullptr;
-}
-
-bool ambiguous_pair(const AnalysisResult& a, const std::string& x, const std::string& y,
-                    std::string* experiment = nullptr) {
-  for (const Ambiguity& amb : a.ambiguous) {
-    bool has_x = false, has_y = false;
-    for (const std::string& c : amb.candidates) {
-      has_x = has_x || c == x;
-      has_y = has_y || c == y;
-    }
-    if (has_x && has_y) {
-      if (experiment) *experiment = amb.separating_experiment;
-      return true;
-    }
-  }
-  return false;
-}
-
-std::string describe(const AnalysisResult& a) {
-  std::ostringstream os;
-  os << "named:";
-  for (const NamedEffect& e : a.effects)
-    os << ' ' << e.effect.label() << '=' << e.effect.value << "+-" << e.std;
-  os << "; ambiguous groups " << a.ambiguous.size() << "; not screened " << a.not_screened.size();
-  return os.str();
-}
-
-double detection_threshold(const SimulationOptions& so, EffectKind kind, int target) {
-  const AnalysisResult clean = analyze(simulate_position_table(so));
-  const CandidateScore* c = find_candidate(clean.steps.front(), kind, target);
-  EXPECT_NE(c, nullptr) << effect_info(kind).name << " was not screened";
-  if (c == nullptr) return 0.0;
-  EXPECT_TRUE(c->identifiable);
-  return c->detection_threshold;
 }
 
 bool mentions(const std::vector<std::string>& notes, const std::string& a, const std::string& b) {
@@ -313,11 +272,21 @@ TEST(Temperature, FitNamesMissingOrFlatTemperatures) {
 class TemperatureHiddenEffect : public ::testing::TestWithParam<EffectKind> {};
 
 // A hidden temperature coefficient at 4 or 8 times its detection threshold, every target, both
-// signs, on random devices: named with the right name and target, recovered within 3 sigma, and
-// (the temperature rising and falling) not confused with drift.
-TEST_P(TemperatureHiddenEffect, NamedAndRecoveredWithin3Sigma) {
+// signs, on random devices: named first with the right name and target, recovered within k std,
+// the chi-square back in its band (k and the band: quantiles over the 2 x 6 trials, 3 checks
+// each), and (the temperature rising and falling) not reported as inseparable from drift. Drift
+// named beside it is a false alarm, allowed at the analysis' rate (alpha plus the Monte Carlo
+// error of its critical values): a confusion of the two would name drift in most trials.
+TEST_P(TemperatureHiddenEffect, NamedAndRecovered) {
   const EffectKind kind = GetParam();
-  for (int trial = 0; trial < 6; ++trial) {
+  const int trials = 6;
+  const analysis_checks::TrialBands bands = analysis_checks::trial_bands(2 * trials, 3);
+  const AnalysisOptions defaults;
+  const double false_alarm = defaults.alpha + 4.0 * std::sqrt(defaults.alpha * (1.0 - defaults.alpha) /
+                                                              defaults.monte_carlo_draws);
+  const int drift_allowed = statistical_bounds::binomial_upper(trials, false_alarm, 1e-4);
+  int drift_named = 0;
+  for (int trial = 0; trial < trials; ++trial) {
     const std::uint64_t seed = 300 + 10 * static_cast<std::uint64_t>(kind) + trial;
     SimulationOptions so = warm_up_and_cool_down(seed);
     const int target = trial % 3;
@@ -333,12 +302,14 @@ TEST_P(TemperatureHiddenEffect, NamedAndRecoveredWithin3Sigma) {
     const NamedEffect* e = find_named(a, kind, target);
     ASSERT_NE(e, nullptr);
     EXPECT_GT(e->std, 0.0);
-    EXPECT_LE(std::abs(e->effect.value - hidden.value), 3.0 * e->std);
-    EXPECT_EQ(find_named(a, EffectKind::OffsetDrift, target), nullptr);
+    EXPECT_LE(std::abs(e->effect.value - hidden.value), bands.k * e->std);
+    if (find_named(a, EffectKind::OffsetDrift, target) != nullptr) ++drift_named;
     EXPECT_FALSE(
         ambiguous_pair(a, hidden.label(), Effect{EffectKind::OffsetDrift, target}.label()));
-    EXPECT_LE(a.after.summary.reduced_chi2, a.after.summary.band99_high);
+    analysis_checks::expect_chi2_in_band(a.after.summary, bands.tail);
   }
+  EXPECT_LE(drift_named, drift_allowed) << "offset_drift named beside " << effect_info(kind).name
+                                        << " in " << drift_named << " of " << trials << " trials";
 }
 
 INSTANTIATE_TEST_SUITE_P(Temperature, TemperatureHiddenEffect,

@@ -35,6 +35,7 @@
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/bag_input.h"
 #include "accel_intrinsics/ros/conversions.h"
+#include "../support/statistical_bounds.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
@@ -594,7 +595,8 @@ TEST(OfflineFit, AnalyzeNamesATimingLagHiddenInTheRawStreams) {
   const double value = j["timing_lag"]["value"].get<double>();
   const double std_s = j["timing_lag"]["std"].get<double>();
   EXPECT_GT(std_s, 0.0);
-  EXPECT_NEAR(value, lag_s, 3 * std_s);
+  // One run: k std with a two-sided tail of 1e-4 (3 std would fail 1 seed in 370).
+  EXPECT_NEAR(value, lag_s, ai::statistical_bounds::normal_k(1e-4) * std_s);
   bool named = false;
   for (const auto& e : j["effects"])
     named = named || (e["name"] == "timing_lag" && e["target"] == "all");
