@@ -1,7 +1,6 @@
 // kill_in_dwell.test: SIGKILL the calibration node inside the dwell of a chosen position with
 // the simulated clock held, so that what happens next does not depend on the machine's load.
 #include <sensor_msgs/Imu.h>
-#include <std_srvs/SetBool.h>
 
 #include <algorithm>
 #include <fstream>
@@ -26,11 +25,6 @@ void on_imu(const sensor_msgs::Imu::ConstPtr& msg) {
 std::size_t commands_seen() {
   std::lock_guard<std::mutex> lock(seen_mutex);
   return commands.size();
-}
-bool pause_clock(bool pause) {
-  std_srvs::SetBool srv;
-  srv.request.data = pause;
-  return ros::service::call("/sim_clock/pause", srv) && srv.response.success;
 }
 // Rows of the checkpoint file (lines after the header; a torn last line is not a row).
 std::size_t checkpoint_rows(const std::string& path) {

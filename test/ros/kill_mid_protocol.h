@@ -7,6 +7,7 @@
 
 #include <diagnostic_msgs/DiagnosticStatus.h>
 #include <signal.h>
+#include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
 #include <ros/master.h>
 #include <ros/network.h>
@@ -26,6 +27,8 @@ namespace {
 std::mutex mutex;
 std::map<std::string, std::string> progress, status;
 double first_moving_stamp = -1.0;
+accel_intrinsics::GimbalCommand last_command;
+bool have_command = false;
 void on_progress(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex);
   for (const auto& kv : msg->values) progress[kv.key] = kv.value;
@@ -40,6 +43,20 @@ void on_command(const accel_intrinsics::GimbalCommand::ConstPtr& msg) {
       msg->phase == 0 && msg->step == 0) {
     first_moving_stamp = msg->header.stamp.toSec();
   }
+  last_command = *msg;
+  have_command = true;
+}
+// Whether the last gimbal command received is the SETTLED of `position` (0-based, protocol order).
+bool settled_at(int position, int steps) {
+  std::lock_guard<std::mutex> lock(mutex);
+  return have_command && last_command.state == accel_intrinsics::GimbalCommand::SETTLED &&
+         static_cast<int>(last_command.phase) * steps + static_cast<int>(last_command.step) == position;
+}
+// Holds or releases the simulated clock (sim_clock ~pause).
+bool pause_clock(bool pause) {
+  std_srvs::SetBool srv;
+  srv.request.data = pause;
+  return ros::service::call("/sim_clock/pause", srv) && srv.response.success;
 }
 std::string value(std::map<std::string, std::string>& m, const std::string& key) {
   std::lock_guard<std::mutex> lock(mutex);
@@ -76,6 +93,10 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   pnh.getParam("timeout_s", timeout_s);
   pnh.getParam("steps", steps);
   pnh.getParam("kill_at_position", kill_at);
+  bool hold_clock = false;
+  int expected_discarded = -1;  // < 0: printed, not checked
+  pnh.getParam("hold_clock", hold_clock);
+  pnh.getParam("expected_dwells_discarded", expected_discarded);
   ASSERT_TRUE(pnh.getParam("output_dir", output_dir));
   ros::Subscriber p = nh.subscribe("/gimbal_controller/progress", 10, on_progress);
   ros::Subscriber s = nh.subscribe("/calibration/status", 10, on_status);
@@ -83,20 +104,45 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   stand_checks::reset_and_start();
   if (::testing::Test::HasFatalFailure()) return;
 
-  // Mid-protocol: SIGKILL.
+  // Mid-protocol: SIGKILL. With hold_clock, inside the dwell of position kill_at: the test waits
+  // for its SETTLED, holds the simulated clock, kills, and runs the clock on once the victim is
+  // back, so where the kill lands does not depend on the machine's load. Otherwise as soon as the
+  // controller reports position kill_at, in a move or a dwell.
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
-  while (ros::WallTime::now() < deadline) {
-    const std::string position = value(progress, "position");
-    if (!position.empty() && std::stoi(position) >= kill_at) break;
-    ros::WallDuration(0.05).sleep();
+  if (hold_clock) {
+    ASSERT_TRUE(ros::service::waitForService("/sim_clock/pause", ros::Duration(10.0)));
+    while (!settled_at(kill_at - 1, steps) && ros::WallTime::now() < deadline) {
+      ros::WallDuration(0.005).sleep();
+    }
+    ASSERT_TRUE(settled_at(kill_at - 1, steps)) << "no SETTLED of position " << kill_at;
+    ASSERT_TRUE(pause_clock(true));
+    ros::WallDuration(1.0).sleep();  // callbacks in flight done; nothing moves in simulated time
+    ASSERT_TRUE(settled_at(kill_at - 1, steps)) << "the clock did not stop in the dwell";
+  } else {
+    while (ros::WallTime::now() < deadline) {
+      const std::string position = value(progress, "position");
+      if (!position.empty() && std::stoi(position) >= kill_at) break;
+      ros::WallDuration(0.05).sleep();
+    }
+    ASSERT_GE(std::stoi(value(progress, "position")), kill_at);
   }
-  ASSERT_GE(std::stoi(value(progress, "position")), kill_at);
   const int pid = node_pid(victim);
   ASSERT_GT(pid, 1);
   ASSERT_EQ(kill(pid, SIGKILL), 0);
-  std::printf("killed %s (pid %d) at position %s (phase %s step %s)\n", victim.c_str(), pid,
+  std::printf("killed %s (pid %d) at position %s (phase %s step %s)%s\n", victim.c_str(), pid,
               value(progress, "position").c_str(), value(progress, "phase").c_str(),
-              value(progress, "step").c_str());
+              value(progress, "step").c_str(), hold_clock ? ", clock held in its dwell" : "");
+  if (hold_clock) {
+    bool back = false;
+    while (!back && ros::WallTime::now() < deadline) {
+      const int now_pid = node_pid(victim);
+      back = now_pid > 1 && now_pid != pid;
+      if (!back) ros::WallDuration(0.1).sleep();
+    }
+    ASSERT_TRUE(back) << victim << " did not come back";
+    ros::WallDuration(2.0).sleep();  // its services, subscriptions and latched progress
+    ASSERT_TRUE(pause_clock(false));
+  }
 
   // roslaunch respawns it; it resumes; the protocol ends with a result.
   accel_intrinsics::GetIntrinsics::Response res;
@@ -152,6 +198,10 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   stand_checks::Truth truth;
   ASSERT_TRUE(stand_checks::load_truth("", &truth));
   stand_checks::expect_matches_truth(r, truth, limits, "resumed");
+  ros::WallDuration(1.0).sleep();  // the status after the fit
   std::printf("restored run: %s; %s dwells discarded, %s\n", res.message.c_str(),
               value(status, "dwells_discarded").c_str(), value(status, "last_warning").c_str());
+  if (expected_discarded >= 0) {
+    EXPECT_EQ(value(status, "dwells_discarded"), std::to_string(expected_discarded));
+  }
 }
