@@ -372,7 +372,12 @@ Smc100Emulator::Smc100Emulator(const EmulatorOptions& options) : DeviceEmulator(
   }
 }
 
-void Smc100Emulator::on_line(const std::string& line) {
+void Smc100Emulator::on_line(const std::string& received) {
+  // The manual: spaces are ignored anywhere, and commands are not case-sensitive.
+  std::string line;
+  for (char ch : received) {
+    if (ch != ' ') line += static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+  }
   std::size_t i = 0;
   while (i < line.size() && std::isdigit(static_cast<unsigned char>(line[i]))) ++i;
   if (i == 0 || line.size() < i + 2) return;  // not addressed: nobody answers
@@ -402,14 +407,14 @@ void Smc100Emulator::on_line(const std::string& line) {
     answer(fmt("%.6f", c.axis.at(t)));
   } else if (command == "TE" && arg.empty()) {
     answer(std::string(1, c.error));
-    c.error = 'A';
+    c.error = '@';
   } else if (command == "PA" && query) {
     answer(fmt("%.6f", c.target));
   } else if (command == "PA") {
     char* end = nullptr;
     const double value = std::strtod(arg.c_str(), &end);
     if (arg.empty() || end != arg.c_str() + arg.size()) {
-      c.error = 'D';
+      c.error = 'C';  // parameter missing or out of range
       return;
     }
     if (c.state >= 0x0A && c.state <= 0x11) {
@@ -443,7 +448,13 @@ void Smc100Emulator::on_line(const std::string& line) {
       c.state = 0x1E;
       c.homing_done = t + options_.home_s;
     } else {
-      c.error = c.state == 0x28 ? 'M' : 'K';
+      // Already homing: E; otherwise "not allowed in <state>": CONFIGURATION I, DISABLE J,
+      // READY K, MOVING M.
+      c.error = c.state == 0x1E || c.state == 0x1F          ? 'E'
+                : c.state == 0x14                           ? 'I'
+                : c.state >= 0x3C && c.state <= 0x3E        ? 'J'
+                : c.state == 0x28                           ? 'M'
+                                                            : 'K';
     }
   } else if (command == "RS" && arg.empty()) {
     c.axis.halt(t);
@@ -453,7 +464,7 @@ void Smc100Emulator::on_line(const std::string& line) {
     c.axis.halt(t);
     if (c.state == 0x28) c.state = 0x33;
   } else {
-    c.error = 'B';  // unknown message code
+    c.error = 'A';  // unknown message code
   }
 }
 

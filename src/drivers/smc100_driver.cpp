@@ -64,14 +64,16 @@ std::string smc100_state_text(int state) {
   }
 }
 
+// The TE letters of Newport's SMC100CC/PP manual ('@': no error).
 std::string smc100_error_text(char code) {
   switch (code) {
-    case 'A': return "no error";
-    case 'B': return "unknown message code or floating point controller address";
-    case 'C': return "controller address not correct";
-    case 'D': return "parameter missing or out of range";
-    case 'E': return "command not allowed";
-    case 'F': return "home sequence already started";
+    case '@': return "no error";
+    case 'A': return "unknown message code or floating point controller address";
+    case 'B': return "controller address not correct";
+    case 'C': return "parameter missing or out of range";
+    case 'D': return "command not allowed";
+    case 'E': return "home sequence already started";
+    case 'F': return "ESP stage name unknown";
     case 'G': return "displacement out of limits";
     case 'H': return "command not allowed in NOT REFERENCED state";
     case 'I': return "command not allowed in CONFIGURATION state";
@@ -129,7 +131,7 @@ void Smc100Driver::command(const std::string& address, const std::string& comman
     throw GimbalFault("smc100: unexpected reply '" + address + "TE" + printable(error) + "' to '" +
                       address + "TE?'");
   }
-  if (error[0] != 'A') {
+  if (error[0] != '@') {  // '@': no error
     const std::string text = smc100_error_text(error[0]);
     throw GimbalFault("smc100: address " + address + " refused '" + address + command + "': '" +
                       address + "TE" + error + "'" + (text.empty() ? "" : " (" + text + ")"));

@@ -12,6 +12,7 @@
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/drivers/emulators.h"
 #include "accel_intrinsics/drivers/grbl_driver.h"
+#include "accel_intrinsics/drivers/serial_port.h"
 #include "accel_intrinsics/drivers/smc100_driver.h"
 
 namespace ai = accel_intrinsics;
@@ -366,6 +367,100 @@ INSTANTIATE_TEST_SUITE_P(
                     FaultCase{"garbage", {"unexpected reply", "\\x07#~q"}},
                     FaultCase{"no_reply", {"no reply", "1TE?"}}, FaultCase{"vanish", {"lost"}}),
     [](const testing::TestParamInfo<FaultCase>& info) { return info.param.fault; });
+
+// A controller written here from Newport's SMC100CC/PP manual, independently of Smc100Emulator:
+// set commands are silent; TE answers the letter of the last command's error, '@' for none (A:
+// unknown message code, C: parameter missing or out of range, ...); TS answers "1TS", 4 hex digits
+// of positioner errors and 2 of the controller state (32 READY from HOMING, 33 READY from
+// MOVING). `refuse` is the TE letter its PA leaves ('@': the move is done at once).
+class ManualSmc100 : public ai::DeviceEmulator {
+ public:
+  explicit ManualSmc100(char refuse) : DeviceEmulator(ai::EmulatorOptions()), refuse_(refuse) {}
+
+ protected:
+  void on_line(const std::string& line) override {
+    if (line == "1TS?") {
+      reply(moved_ ? "1TS000033\r\n" : "1TS000032\r\n");
+    } else if (line == "1TP?") {
+      reply(moved_ ? "1TP90\r\n" : "1TP0\r\n");
+    } else if (line == "1TE?") {
+      reply(std::string("1TE") + error_ + "\r\n");
+      error_ = '@';
+    } else if (line.rfind("1PA", 0) == 0) {
+      error_ = refuse_;
+      moved_ = refuse_ == '@';
+    } else {
+      error_ = 'A';
+    }
+  }
+  void on_time() override {}
+
+ private:
+  char refuse_;
+  char error_ = '@';
+  bool moved_ = false;
+};
+
+ai::SerialGimbalOptions one_axis_smc100(const std::string& port) {
+  ai::SerialGimbalOptions o;
+  o.port = port;
+  o.baud = 57600;
+  o.reply_timeout_s = 0.5;
+  o.poll_interval_s = 0.01;
+  o.settle_s = 0.05;
+  for (int p = 0; p < 3; ++p) {
+    o.axis_map.phases[p].axis = "1";
+    o.axis_map.phases[p].manual_remount = p > 0;
+  }
+  return o;
+}
+
+TEST(Smc100, TakesTheManualsNoErrorAndNamesItsErrorLetters) {
+  {
+    Served device(std::unique_ptr<ai::DeviceEmulator>(new ManualSmc100('@')));
+    ai::Smc100Driver driver(one_axis_smc100(device->port()));
+    EXPECT_EQ(fault_of_move(driver, target(Phase::X, 90.0)), "");
+    EXPECT_TRUE(driver.settled(wall_s()));
+    EXPECT_NEAR(reported_alpha_deg(driver, Phase::X), 90.0, 1e-9);
+  }
+  for (const auto& refusal : {std::make_pair('C', "parameter missing or out of range"),
+                              std::make_pair('A', "unknown message code"),
+                              std::make_pair('H', "not allowed in NOT REFERENCED state")}) {
+    Served device(std::unique_ptr<ai::DeviceEmulator>(new ManualSmc100(refusal.first)));
+    ai::Smc100Driver driver(one_axis_smc100(device->port()));
+    const std::string message = fault_of_move(driver, target(Phase::X, 90.0));
+    EXPECT_NE(message.find(std::string("1TE") + refusal.first), std::string::npos) << message;
+    EXPECT_NE(message.find(refusal.second), std::string::npos) << message;
+  }
+}
+
+// The manual: spaces anywhere are ignored and commands are not case-sensitive; an unknown
+// command is TE error A, a PA without a number C, a second OR while homing E.
+TEST(Smc100, EmulatorReadsLinesAndReportsErrorsAsTheManualSays) {
+  ai::EmulatorOptions e = fast();
+  e.needs_homing = true;
+  e.home_s = 5.0;
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::Smc100Emulator(e)));
+  ai::SerialPort port;
+  port.open(emu->port(), 57600);
+  auto ask = [&](const std::string& line) {
+    port.write(line + "\r\n");
+    std::string reply;
+    EXPECT_TRUE(port.read_line(&reply, 1.0)) << "no reply to " << line;
+    return reply;
+  };
+  EXPECT_EQ(ask("1 ts ?"), "1TS00000A");
+  EXPECT_EQ(ask("1TE?"), "1TE@");
+  port.write("1XX\r\n");
+  EXPECT_EQ(ask("1TE?"), "1TEA");
+  port.write("1or\r\n");
+  EXPECT_EQ(ask("1TE?"), "1TE@");
+  EXPECT_EQ(ask("1TS?"), "1TS00001E");
+  port.write("1OR\r\n");
+  EXPECT_EQ(ask("1TE?"), "1TEE");
+  port.write("1PA\r\n");
+  EXPECT_EQ(ask("1TE?"), "1TEC");
+}
 
 TEST(SerialPort, MissingPortSaysSo) {
   ai::SerialGimbalOptions o = two_axis("/nonexistent/ttyACM9", "X", "Y");

@@ -128,7 +128,7 @@ class Smc100Emulator : public DeviceEmulator {
   struct Controller {
     int state = 0x0A;
     int errors = 0;
-    char error = 'A';
+    char error = '@';  // what TE answers next ('@': no error)
     double target = 0.0;
     double homing_done = -1.0;
     double alarm_at = -1.0;
