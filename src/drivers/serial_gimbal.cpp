@@ -147,16 +147,14 @@ std::string SerialGimbalDriver::expect_line(const std::string& what, double time
 }
 
 void SerialGimbalDriver::move_to(const GimbalTarget& target, double t_s) {
-  // The reported angle is read through the map of the target's phase: a phase change starts a
-  // new history.
-  if (target.phase != target_.phase) history_.clear();
+  // The stage rests where it was last polled until this command goes out at t_s, in the pose of
+  // the phase it is in. Without this sample the orientation between the last poll and t_s would
+  // interpolate toward the first position polled in motion (or take the next phase's frame), and
+  // the tf filled in up to the MOVING stamp would show the move early (the clock check then saw
+  // the IMU "early" on a loaded machine). Mid-move there is no rest to record.
+  if (polled_ && !moving_) record_position(t_s);
   target_ = target;
   target_positions_ = options_.axis_map.positions_deg(target.phase, target.angle_rad);
-  // The stage rests where it was last polled until this command goes out at t_s. Without this
-  // sample the orientation between the last poll and t_s would interpolate toward the first
-  // position polled in motion, and the tf filled in up to the MOVING stamp would show the move
-  // early (the clock check then saw the IMU "early" on a loaded machine).
-  if (polled_) record_position(t_s);
   moving_ = true;
   at_rest_since_s_ = -1.0;
   send_move(target_positions_);
@@ -193,7 +191,8 @@ void SerialGimbalDriver::record_position(double t_s) {
   const auto it = last_status_.position.find(p.axis);
   if (it == last_status_.position.end()) return;
   if (!history_.empty() && t_s < history_.back().t_s) history_.clear();  // clock jumped back
-  history_.push_back(Sample{t_s, options_.axis_map.alpha_rad(target_.phase, it->second)});
+  history_.push_back(
+      Sample{t_s, target_.phase, options_.axis_map.alpha_rad(target_.phase, it->second)});
   while (history_.size() > 2000) history_.pop_front();
 }
 
@@ -241,22 +240,26 @@ bool SerialGimbalDriver::manual_remount(core::Phase phase) const {
 }
 
 GimbalTransforms SerialGimbalDriver::orientation(double t_s) const {
-  double alpha = target_.angle_rad;
-  if (!history_.empty()) {
-    if (t_s <= history_.front().t_s) {
-      alpha = history_.front().alpha_rad;
-    } else if (t_s >= history_.back().t_s) {
-      alpha = history_.back().alpha_rad;
-    } else {
-      const auto after = std::lower_bound(history_.begin(), history_.end(), t_s,
-                                          [](const Sample& s, double t) { return s.t_s < t; });
-      const auto before = after - 1;
-      const double span = after->t_s - before->t_s;
-      const double f = span > 0.0 ? (t_s - before->t_s) / span : 1.0;
-      alpha = before->alpha_rad + f * (after->alpha_rad - before->alpha_rad);
+  if (history_.empty()) return gimbal_transforms(target_.phase, target_.angle_rad, 0.0);
+  const Sample* at = &history_.front();
+  double alpha = at->alpha_rad;
+  if (t_s >= history_.back().t_s) {
+    at = &history_.back();
+    alpha = at->alpha_rad;
+  } else if (t_s > history_.front().t_s) {
+    const auto after = std::lower_bound(history_.begin(), history_.end(), t_s,
+                                        [](const Sample& s, double t) { return s.t_s < t; });
+    const auto before = after - 1;
+    at = &*before;
+    alpha = before->alpha_rad;
+    // Between two polls of one phase the angle is interpolated; across a phase change (the
+    // frame changes with the move command) it is not.
+    const double span = after->t_s - before->t_s;
+    if (after->phase == before->phase && span > 0.0) {
+      alpha += (t_s - before->t_s) / span * (after->alpha_rad - before->alpha_rad);
     }
   }
-  return gimbal_transforms(target_.phase, alpha, 0.0);
+  return gimbal_transforms(at->phase, alpha, 0.0);
 }
 
 }  // namespace accel_intrinsics

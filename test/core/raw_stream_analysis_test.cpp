@@ -85,7 +85,7 @@ void expect_same_schedule(const std::vector<ScheduledPosition>& got,
 // One estimate against its truth in a test about something else (time axes, convergence, the
 // noise scale): k std with a two-sided tail of 1e-4, so a correct estimator fails such a check in
 // fewer than 1 of 10^4 seeds (3 std: 1 in 370). Unbiasedness over many seeds and rates is
-// TimingLag.RecoveredWithinThreeSigmaForRandomDevicesRatesAndSeeds.
+// TimingLag.RecoveredWithinItsStdForRandomDevicesRatesAndSeeds.
 const double kSingleRunK = statistical_bounds::normal_k(1e-4);
 
 // The model along the moves fits to the noise: the reduced chi-square of n residuals is within
@@ -195,7 +195,7 @@ TEST(PooledSampleStd, WeightsDwellsByDegreesOfFreedom) {
   EXPECT_EQ(pooled_sample_std(PositionTable{}), Eigen::Vector3d::Zero());
 }
 
-TEST(TimingLag, RecoveredWithinThreeSigmaForRandomDevicesRatesAndSeeds) {
+TEST(TimingLag, RecoveredWithinItsStdForRandomDevicesRatesAndSeeds) {
   struct Case {
     double lag_s;
     double rate_hz;

@@ -222,6 +222,27 @@ TEST(Grbl, ReportsNoMotionBeforeTheMoveCommand) {
   for (double t : {rest_s, rest_s + 0.5, command_s - 1e-6}) {
     EXPECT_NEAR(alpha_at(t), 0.0, 1e-9) << "at " << t - command_s << " s from the command";
   }
+  // A phase change: until its command the DUT keeps the frame of the phase it is in. (Settled
+  // on the node clock's stamps: 0.2 s at rest, settle_s.)
+  for (int k = 0; k < 100 && !driver.settled(command_s + 0.1); ++k) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(15));
+    driver.update(command_s + 0.1 + 0.01 * k);
+  }
+  ASSERT_TRUE(driver.settled(command_s + 1.5));
+  const double z_command_s = command_s + 2.0;
+  driver.update(z_command_s - 0.5);
+  driver.move_to(target(Phase::Z, 30.0), z_command_s);
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  driver.update(z_command_s + 0.1);
+  const Eigen::Matrix3d before_x =
+      ai::gimbal_transforms(Phase::X, 90.0 * ai::core::kPi / 180.0, 0.0).world_dut();
+  const Eigen::Matrix3d after_z =
+      ai::gimbal_transforms(Phase::Z, 30.0 * ai::core::kPi / 180.0, 0.0).world_dut();
+  for (double t : {z_command_s - 0.4, z_command_s - 1e-6}) {
+    EXPECT_LT((driver.orientation(t).world_dut() - before_x).norm(), 1e-9)
+        << "at " << t - z_command_s << " s from the command";
+  }
+  EXPECT_LT((driver.orientation(z_command_s + 0.1).world_dut() - after_z).norm(), 1e-6);
 }
 
 TEST(Grbl, HomesAtStartOrRefusesAnAlarm) {

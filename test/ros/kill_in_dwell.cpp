@@ -15,6 +15,7 @@ std::mutex seen_mutex;
 std::vector<GimbalCommand> commands;  // as received (the controller publishes in stamp order)
 std::vector<double> imu_stamps;
 void on_cmd(const GimbalCommand::ConstPtr& msg) {
+  on_command(msg);  // kill_mid_protocol.h: the last command, for hold_clock_in_dwell
   std::lock_guard<std::mutex> lock(seen_mutex);
   commands.push_back(*msg);
 }
@@ -75,30 +76,14 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
   ros::Subscriber s = nh.subscribe("/calibration/status", 10, on_status);
   ros::Subscriber c = nh.subscribe("/gimbal/command", 1000, on_cmd);
   ros::Subscriber i = nh.subscribe("/imu/data_raw", 100000, on_imu);
-  ASSERT_TRUE(ros::service::waitForService("/sim_clock/pause", ros::Duration(60.0)));
   stand_checks::reset_and_start();
   if (HasFatalFailure()) return;
 
   // The SETTLED of the chosen position: hold the clock there (the stand stops inside the dwell).
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
-  bool settled = false;
-  while (!settled && ros::WallTime::now() < deadline) {
-    {
-      std::lock_guard<std::mutex> lock(seen_mutex);
-      settled = !commands.empty() && commands.back().state == GimbalCommand::SETTLED &&
-                commands.back().phase == kill_phase_index &&
-                static_cast<int>(commands.back().step) == kill_step;
-    }
-    if (!settled) ros::WallDuration(0.005).sleep();
-  }
-  ASSERT_TRUE(settled) << "no SETTLED of phase " << kill_phase << " step " << kill_step;
-  ASSERT_TRUE(pause_clock(true));
-  ros::WallDuration(1.0).sleep();  // callbacks in flight done; nothing moves in simulated time
+  hold_clock_in_dwell(kill_position, steps, deadline);
+  if (HasFatalFailure()) return;
   const std::size_t commands_at_kill = commands_seen();
-  {
-    std::lock_guard<std::mutex> lock(seen_mutex);
-    ASSERT_EQ(commands.back().state, GimbalCommand::SETTLED) << "the clock did not stop in the dwell";
-  }
   // The checkpoint as the killed node leaves it: the run continues after its last row.
   const std::size_t rows_at_kill = checkpoint_rows(output_dir + "/position_table.csv");
   ASSERT_LT(rows_at_kill, static_cast<std::size_t>(kill_position)) << "the cut dwell is not in it";

@@ -83,6 +83,28 @@ int node_pid(const std::string& node) {
 }
 }  // namespace
 
+// Waits for the SETTLED of `position` (0-based, protocol order) and holds the simulated clock
+// inside that dwell, at most `max_into_dwell_s` after its start (so the test's margins, in
+// simulated seconds, do not depend on how fast it reacted). Needs on_command subscribed.
+inline void hold_clock_in_dwell(int position, int steps, const ros::WallTime& deadline,
+                                double max_into_dwell_s = 1.0) {
+  ASSERT_TRUE(ros::service::waitForService("/sim_clock/pause", ros::Duration(10.0)));
+  while (!settled_at(position, steps) && ros::WallTime::now() < deadline) {
+    ros::WallDuration(0.005).sleep();
+  }
+  ASSERT_TRUE(settled_at(position, steps)) << "no SETTLED of position " << position + 1;
+  ASSERT_TRUE(pause_clock(true));
+  ros::WallDuration(1.0).sleep();  // callbacks in flight done; nothing moves in simulated time
+  ASSERT_TRUE(settled_at(position, steps)) << "the clock did not stop in the dwell";
+  double settled_s = 0.0;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    settled_s = last_command.header.stamp.toSec();
+  }
+  const double into_s = ros::Time::now().toSec() - settled_s;
+  ASSERT_LE(into_s, max_into_dwell_s) << "the clock stopped " << into_s << " s into the dwell";
+}
+
 // The whole scenario; `victim` is the node to kill ("/calibration" or "/gimbal_controller").
 inline void kill_mid_protocol_and_check(const std::string& victim) {
   ros::NodeHandle nh, pnh("~");
@@ -110,14 +132,8 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   // controller reports position kill_at, in a move or a dwell.
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
   if (hold_clock) {
-    ASSERT_TRUE(ros::service::waitForService("/sim_clock/pause", ros::Duration(10.0)));
-    while (!settled_at(kill_at - 1, steps) && ros::WallTime::now() < deadline) {
-      ros::WallDuration(0.005).sleep();
-    }
-    ASSERT_TRUE(settled_at(kill_at - 1, steps)) << "no SETTLED of position " << kill_at;
-    ASSERT_TRUE(pause_clock(true));
-    ros::WallDuration(1.0).sleep();  // callbacks in flight done; nothing moves in simulated time
-    ASSERT_TRUE(settled_at(kill_at - 1, steps)) << "the clock did not stop in the dwell";
+    hold_clock_in_dwell(kill_at - 1, steps, deadline);
+    if (::testing::Test::HasFatalFailure()) return;
   } else {
     while (ros::WallTime::now() < deadline) {
       const std::string position = value(progress, "position");
@@ -141,6 +157,7 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
     }
     ASSERT_TRUE(back) << victim << " did not come back";
     ros::WallDuration(2.0).sleep();  // its services, subscriptions and latched progress
+    ASSERT_TRUE(settled_at(kill_at - 1, steps)) << "the stand moved while the clock was held";
     ASSERT_TRUE(pause_clock(false));
   }
 
@@ -198,7 +215,6 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   stand_checks::Truth truth;
   ASSERT_TRUE(stand_checks::load_truth("", &truth));
   stand_checks::expect_matches_truth(r, truth, limits, "resumed");
-  ros::WallDuration(1.0).sleep();  // the status after the fit
   std::printf("restored run: %s; %s dwells discarded, %s\n", res.message.c_str(),
               value(status, "dwells_discarded").c_str(), value(status, "last_warning").c_str());
   if (expected_discarded >= 0) {

@@ -52,6 +52,8 @@ TEST(Smc100OneAxis, ManualRemountThroughContinue) {
   ros::Subscriber command_sub = nh.subscribe("/gimbal/command", 1000, on_command);
   ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(90.0)));
   ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(90.0)));
+  // The controller advertises its services one after the other: start up does not mean continue.
+  ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/continue", ros::Duration(90.0)));
 
   // continue before any remount is refused.
   std_srvs::Trigger early;

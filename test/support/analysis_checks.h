@@ -64,13 +64,16 @@ inline std::string describe(const core::AnalysisResult& a) {
 }
 
 // The detection threshold of kind[target] for this device, protocol and noise: screened on the
-// same simulation without the effect. 0 when it was not a candidate (a failure is recorded).
+// same simulation without the effect. 0 when it was not a candidate (a failure is recorded);
+// a candidate the design cannot identify records a failure too.
 inline double detection_threshold(const core::SimulationOptions& so, core::EffectKind kind,
                                   int target) {
   const core::AnalysisResult clean = core::analyze(core::simulate_position_table(so));
   const core::CandidateScore* c = find_candidate(clean.steps.front(), kind, target);
   EXPECT_NE(c, nullptr) << core::effect_info(kind).name << " was not screened";
-  return c ? c->detection_threshold : 0.0;
+  if (c == nullptr) return 0.0;
+  EXPECT_TRUE(c->identifiable) << core::effect_info(kind).name;
+  return c->detection_threshold;
 }
 
 // Bands for `trials` trials making `checks_per_trial` two-sided checks each, 1e-3 in all.

@@ -120,6 +120,7 @@ class SerialGimbalDriver : public GimbalDriver {
 
   struct Sample {
     double t_s;
+    core::Phase phase;  // the frame alpha is read in
     double alpha_rad;
   };
   GimbalTarget target_;
@@ -128,7 +129,7 @@ class SerialGimbalDriver : public GimbalDriver {
   double at_rest_since_s_ = -1.0;  // < 0: not at rest at the target
   double settled_s_ = 0.0;
   DeviceStatus last_status_;
-  std::deque<Sample> history_;  // reported alpha of the current phase
+  std::deque<Sample> history_;  // reported alpha, with the phase of each poll
   std::chrono::steady_clock::time_point last_poll_{};
   bool polled_ = false;
 };
