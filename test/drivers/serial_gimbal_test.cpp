@@ -353,16 +353,10 @@ TEST(Smc100, HomesMovesSettlesAndReportsThePosition) {
   }
 }
 
-class Smc100Fault : public testing::TestWithParam<FaultCase> {};
-
-TEST_P(Smc100Fault, CarriesTheDevicesWords) {
-  ai::EmulatorOptions e = fast();
-  e.fault = GetParam().fault;
-  e.fault_after = 1;
-  e.rate_deg_s = 180.0;
-  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::Smc100Emulator(e)));
+// One SMC100 at address 1 turning every phase (y and z remounted by hand).
+ai::SerialGimbalOptions one_axis_smc100(const std::string& port) {
   ai::SerialGimbalOptions o;
-  o.port = emu->port();
+  o.port = port;
   o.baud = 57600;
   o.reply_timeout_s = 0.5;
   o.poll_interval_s = 0.01;
@@ -371,6 +365,18 @@ TEST_P(Smc100Fault, CarriesTheDevicesWords) {
     o.axis_map.phases[p].axis = "1";
     o.axis_map.phases[p].manual_remount = p > 0;
   }
+  return o;
+}
+
+class Smc100Fault : public testing::TestWithParam<FaultCase> {};
+
+TEST_P(Smc100Fault, CarriesTheDevicesWords) {
+  ai::EmulatorOptions e = fast();
+  e.fault = GetParam().fault;
+  e.fault_after = 1;
+  e.rate_deg_s = 180.0;
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::Smc100Emulator(e)));
+  const ai::SerialGimbalOptions o = one_axis_smc100(emu->port());
   ai::Smc100Driver driver(o);
   ASSERT_EQ(fault_of_move(driver, target(Phase::X, 30.0)), "");
   const std::string message = fault_of_move(driver, target(Phase::X, 90.0));
@@ -421,20 +427,6 @@ class ManualSmc100 : public ai::DeviceEmulator {
   char error_ = '@';
   bool moved_ = false;
 };
-
-ai::SerialGimbalOptions one_axis_smc100(const std::string& port) {
-  ai::SerialGimbalOptions o;
-  o.port = port;
-  o.baud = 57600;
-  o.reply_timeout_s = 0.5;
-  o.poll_interval_s = 0.01;
-  o.settle_s = 0.05;
-  for (int p = 0; p < 3; ++p) {
-    o.axis_map.phases[p].axis = "1";
-    o.axis_map.phases[p].manual_remount = p > 0;
-  }
-  return o;
-}
 
 TEST(Smc100, TakesTheManualsNoErrorAndNamesItsErrorLetters) {
   {
