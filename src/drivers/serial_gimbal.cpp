@@ -111,7 +111,7 @@ void SerialGimbalDriver::start_device() {
   const auto start = std::chrono::steady_clock::now();
   for (;;) {
     try {
-      port_.open(options_.port, options_.baud);
+      port_.open(options_.port, options_.baud, options_.xon_xoff);
       break;
     } catch (const SerialError& e) {
       if (std::chrono::steady_clock::now() - start >

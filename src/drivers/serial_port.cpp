@@ -63,7 +63,7 @@ SerialPort::~SerialPort() {
   close();
 }
 
-void SerialPort::open(const std::string& path, int baud) {
+void SerialPort::open(const std::string& path, int baud, bool xon_xoff) {
   close();
   const speed_t speed = baud_constant(baud);
   if (speed == B0) {
@@ -83,6 +83,7 @@ void SerialPort::open(const std::string& path, int baud) {
   cfmakeraw(&tio);
   tio.c_cflag |= CLOCAL | CREAD;
   tio.c_cflag &= ~(CSTOPB | PARENB | CRTSCTS);
+  if (xon_xoff) tio.c_iflag |= IXON | IXOFF;  // cfmakeraw clears them
   tio.c_cc[VMIN] = 0;
   tio.c_cc[VTIME] = 0;
   cfsetispeed(&tio, speed);

@@ -58,6 +58,8 @@ void read_serial_options(const ros::NodeHandle& pnh, const std::string& driver,
   s.settle_s = o->protocol.settle_s;
   read_param(dn, "port", &s.port);
   read_param(dn, "baud", &s.baud);
+  s.xon_xoff = driver == "smc100";
+  read_param(dn, "xon_xoff", &s.xon_xoff);
   read_param(dn, "connect_timeout_s", &s.connect_timeout_s);
   read_param(dn, "reply_timeout_s", &s.reply_timeout_s);
   read_param(dn, "poll_interval_s", &s.poll_interval_s);

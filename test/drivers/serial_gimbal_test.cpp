@@ -1,7 +1,10 @@
 // The serial gimbal drivers (GRBL, SMC100) against their emulators over a real pseudo-terminal:
 // moves, settling, the reported orientation, homing, stop, and every injected serial fault,
 // whose message must carry the device's own words.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <termios.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -358,6 +361,7 @@ ai::SerialGimbalOptions one_axis_smc100(const std::string& port) {
   ai::SerialGimbalOptions o;
   o.port = port;
   o.baud = 57600;
+  o.xon_xoff = true;
   o.reply_timeout_s = 0.5;
   o.poll_interval_s = 0.01;
   o.settle_s = 0.1;
@@ -428,10 +432,31 @@ class ManualSmc100 : public ai::DeviceEmulator {
   bool moved_ = false;
 };
 
+// Whether the terminal at `path` has XON/XOFF flow control on both ways (termios settings
+// belong to the terminal, so a second descriptor sees what the driver set).
+bool xon_xoff_on(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK);
+  EXPECT_GE(fd, 0) << path;
+  termios tio{};
+  const bool read = fd >= 0 && tcgetattr(fd, &tio) == 0;
+  if (fd >= 0) ::close(fd);
+  return read && (tio.c_iflag & (IXON | IXOFF)) == (IXON | IXOFF);
+}
+
+TEST(SerialPort, XonXoffOnlyWhenAsked) {
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(fast())));
+  for (bool flow : {true, false, true}) {
+    ai::SerialPort port;
+    port.open(emu->port(), 57600, flow);
+    EXPECT_EQ(xon_xoff_on(emu->port()), flow);
+  }
+}
+
 TEST(Smc100, TakesTheManualsNoErrorAndNamesItsErrorLetters) {
   {
     Served device(std::unique_ptr<ai::DeviceEmulator>(new ManualSmc100('@')));
     ai::Smc100Driver driver(one_axis_smc100(device->port()));
+    EXPECT_TRUE(xon_xoff_on(device->port()));  // the manual's RS-232-C settings
     EXPECT_EQ(fault_of_move(driver, target(Phase::X, 90.0)), "");
     EXPECT_TRUE(driver.settled(wall_s()));
     EXPECT_NEAR(reported_alpha_deg(driver, Phase::X), 90.0, 1e-9);

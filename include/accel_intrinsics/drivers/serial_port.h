@@ -26,8 +26,9 @@ class SerialPort {
   SerialPort(const SerialPort&) = delete;
   SerialPort& operator=(const SerialPort&) = delete;
 
-  // Opens `path` raw at `baud` (one of the standard rates 9600 ... 230400). Throws SerialError.
-  void open(const std::string& path, int baud);
+  // Opens `path` raw at `baud` (one of the standard rates 9600 ... 230400), 8N1, with XON/XOFF
+  // software flow control both ways when `xon_xoff`. Throws SerialError.
+  void open(const std::string& path, int baud, bool xon_xoff = false);
   void close();
   bool is_open() const { return fd_ >= 0; }
   const std::string& path() const { return path_; }
