@@ -54,7 +54,7 @@ struct AxisMap {
 struct SerialGimbalOptions {
   std::string port;                // device path ("/dev/ttyUSB0", or the emulator's pty)
   int baud = 115200;               // GRBL: 115200; SMC100: 57600
-  bool xon_xoff = false;           // software flow control (SMC100: on, as Newport specifies)
+  bool xon_xoff = false;           // software flow control (SMC100: on, as its open drivers use)
   double connect_timeout_s = 5.0;  // keep trying to open the port this long (wall clock), s
   double reply_timeout_s = 2.0;    // a command without its reply this long (wall clock): fault
   double poll_interval_s = 0.05;   // status polls at most this often (wall clock), s
