@@ -290,22 +290,34 @@ struct FaultCase {
   std::vector<std::string> words;  // in the message
 };
 
+// The emulator injects `c.fault` at the second move: the first move is fine, the second's fault
+// message carries `c.words`, and stop() never throws, whatever the device does.
+template <class Emulator, class Driver>
+void expect_second_move_fault(const FaultCase& c,
+                              ai::SerialGimbalOptions (*options)(const std::string& port)) {
+  ai::EmulatorOptions e = fast();
+  e.fault = c.fault;
+  e.fault_after = 1;
+  e.rate_deg_s = 180.0;
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new Emulator(e)));
+  Driver driver(options(emu->port()));
+  ASSERT_EQ(fault_of_move(driver, target(Phase::X, 30.0)), "");
+  const std::string message = fault_of_move(driver, target(Phase::X, 90.0));
+  ASSERT_FALSE(message.empty()) << "no fault for " << c.fault;
+  for (const std::string& w : c.words) {
+    EXPECT_NE(message.find(w), std::string::npos) << "'" << w << "' not in: " << message;
+  }
+  driver.stop(wall_s());
+}
+
+ai::SerialGimbalOptions two_axis_grbl(const std::string& port) {
+  return two_axis(port, "X", "Y");
+}
+
 class GrblFault : public testing::TestWithParam<FaultCase> {};
 
 TEST_P(GrblFault, CarriesTheDevicesWords) {
-  ai::EmulatorOptions e = fast();
-  e.fault = GetParam().fault;
-  e.fault_after = 1;
-  e.rate_deg_s = 180.0;
-  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
-  ai::GrblDriver driver(two_axis(emu->port(), "X", "Y"));
-  ASSERT_EQ(fault_of_move(driver, target(Phase::X, 30.0)), "");  // the first move is fine
-  const std::string message = fault_of_move(driver, target(Phase::X, 90.0));
-  ASSERT_FALSE(message.empty()) << "no fault for " << GetParam().fault;
-  for (const std::string& w : GetParam().words) {
-    EXPECT_NE(message.find(w), std::string::npos) << "'" << w << "' not in: " << message;
-  }
-  driver.stop(wall_s());  // never throws, whatever the device does
+  expect_second_move_fault<ai::GrblEmulator, ai::GrblDriver>(GetParam(), two_axis_grbl);
 }
 
 INSTANTIATE_TEST_SUITE_P(
@@ -375,20 +387,7 @@ ai::SerialGimbalOptions one_axis_smc100(const std::string& port) {
 class Smc100Fault : public testing::TestWithParam<FaultCase> {};
 
 TEST_P(Smc100Fault, CarriesTheDevicesWords) {
-  ai::EmulatorOptions e = fast();
-  e.fault = GetParam().fault;
-  e.fault_after = 1;
-  e.rate_deg_s = 180.0;
-  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::Smc100Emulator(e)));
-  const ai::SerialGimbalOptions o = one_axis_smc100(emu->port());
-  ai::Smc100Driver driver(o);
-  ASSERT_EQ(fault_of_move(driver, target(Phase::X, 30.0)), "");
-  const std::string message = fault_of_move(driver, target(Phase::X, 90.0));
-  ASSERT_FALSE(message.empty()) << "no fault for " << GetParam().fault;
-  for (const std::string& w : GetParam().words) {
-    EXPECT_NE(message.find(w), std::string::npos) << "'" << w << "' not in: " << message;
-  }
-  driver.stop(wall_s());
+  expect_second_move_fault<ai::Smc100Emulator, ai::Smc100Driver>(GetParam(), one_axis_smc100);
 }
 
 INSTANTIATE_TEST_SUITE_P(
