@@ -361,6 +361,28 @@ std::vector<DwellRecord> RestDetector::take_rests() {
 
 // ---- batch -----------------------------------------------------------------------------------
 
+StreamCleanup put_in_time_order(std::vector<ImuSample>* samples) {
+  StreamCleanup c;
+  std::vector<ImuSample>& v = *samples;
+  for (std::size_t i = 1; i < v.size(); ++i) c.reordered += v[i].stamp_s < v[i - 1].stamp_s ? 1 : 0;
+  std::stable_sort(v.begin(), v.end(), [](const ImuSample& a, const ImuSample& b) {
+    return a.stamp_s < b.stamp_s;
+  });
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (kept > 0 && v[i].stamp_s == v[kept - 1].stamp_s) {
+      if (v[i].outputs == v[kept - 1].outputs)
+        ++c.duplicates;
+      else
+        ++c.conflicting;
+      continue;
+    }
+    v[kept++] = v[i];
+  }
+  v.resize(kept);
+  return c;
+}
+
 double median_rate_hz(const std::vector<ImuSample>& samples) {
   if (samples.size() < 2) return 0.0;
   std::vector<double> dt;

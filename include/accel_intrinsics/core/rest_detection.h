@@ -42,7 +42,7 @@ struct RestDetectionOptions {
   double merge_gap_s = 1.0;
   // A rest whose first and last thirds differ by more than creep_factor standard errors is a
   // slow motion, not a rest.
-  double creep_factor = 10.0;
+  double creep_factor = 15.0;
   // The quiet std is this quantile of all block stds (batch) or of the blocks so far (stream).
   double quiet_quantile = 0.05;
   // Samples further apart than gap_factor x the sample interval end a run (a gap in the stream).
@@ -155,6 +155,16 @@ RestDetection detect_rests(const std::vector<ImuSample>& samples,
 // output step (quantized outputs whose quiet blocks read constant).
 Eigen::Vector3d quiet_std_of(const std::vector<ImuSample>& samples, std::uint64_t block_samples,
                              double quantile);
+
+// A recorded stream in time order, as the dwell assembler would have it: sorted by stamp (stable),
+// an exact repeat (same stamp and values) kept once, a second sample at a stamp with other values
+// dropped (a device clock that went back). Returns what it removed.
+struct StreamCleanup {
+  std::uint64_t reordered = 0;   // samples that arrived before an earlier-stamped one
+  std::uint64_t duplicates = 0;  // exact repeats removed
+  std::uint64_t conflicting = 0; // same stamp, other values: dropped
+};
+StreamCleanup put_in_time_order(std::vector<ImuSample>* samples);
 
 // Median sample rate of a stream (1 / median interval); 0 for fewer than two samples.
 double median_rate_hz(const std::vector<ImuSample>& samples);
