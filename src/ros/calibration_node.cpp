@@ -11,6 +11,7 @@
 #include "accel_intrinsics/AbortRun.h"
 #include "accel_intrinsics/ResumeAt.h"
 #include "accel_intrinsics/core/quality.h"
+#include "accel_intrinsics/ros/result_files.h"
 #include "accel_intrinsics/io/analysis_report.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/result_document.h"
@@ -335,23 +336,7 @@ void CalibrationNode::publish_certificate(const core::CalibrationReport& report,
 }
 
 void CalibrationNode::write_exports(const core::CalibrationReport& report) {
-  if (options_.exports.empty()) return;
-  const io::CalibrationToExport calibration =
-      io::calibration_to_export(report, files_.result_path());
-  if (!calibration.quality_failure.empty()) {
-    ROS_ERROR("calibration: no exports written: the result fails the quality gate");
-    return;
-  }
-  for (io::ExportFormat format : options_.exports) {
-    const std::string path = files_.file_path(io::export_file_name(format));
-    try {
-      const io::ExportText text = io::write_export(path, format, calibration);
-      ROS_INFO("calibration: wrote %s", path.c_str());
-      if (!text.notice.empty()) ROS_WARN("calibration: %s", text.notice.c_str());
-    } catch (const io::IoError& e) {
-      ROS_ERROR("calibration: %s", e.what());
-    }
-  }
+  accel_intrinsics::write_exports(files_, options_.exports, report);
 }
 
 std::string CalibrationNode::publish_analysis(const core::CalibrationReport& report,
