@@ -19,10 +19,20 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
   report.noise = dwell_noise(table);
   if (!options.analyze) return report;
   if (report.base_fit.model == FitModel::Tumble) {
-    report.analysis_not_run =
-        "the discrepancy analysis needs known orientations (gimbal angles or f_x,f_y,f_z): a "
-        "hand tumble cannot show angle, axis-tilt, backlash or timing effects, and its screen for "
-        "non-linearity, drift and temperature is not built yet";
+    TumbleAnalysisOptions tumble_options;
+    tumble_options.local_gravity = options.fit.local_gravity;
+    tumble_options.alpha = options.analysis.alpha;
+    tumble_options.min_temperature_span_k = options.analysis.min_temperature_span_k;
+    try {
+      report.tumble_analysis = analyze_tumble(table, tumble_options);
+    } catch (const std::exception& e) {
+      report.analysis_error = e.what();
+      return report;
+    }
+    if (options.certificate_refit && !report.tumble_analysis->named.empty()) {
+      report.certificate = report.tumble_analysis->after;
+      report.certificate_is_refit = true;
+    }
     return report;
   }
 

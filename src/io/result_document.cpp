@@ -243,6 +243,45 @@ void add_tumble_keys(const core::CalibrationReport& report, const ResultContext&
                         {"missing", c.missing},
                         {"closest_deg", closest}};
   }
+  if (report.tumble_analysis) {
+    // The contract's analysis keys (DESIGN.md section 2) for a tumble's screen.
+    const core::TumbleAnalysis& a = *report.tumble_analysis;
+    nlohmann::json effects = nlohmann::json::array();
+    for (std::size_t i = 0; i < a.named.size(); ++i) {
+      const core::Effect& e = a.after.effects[i];
+      effects.push_back({{"name", e.name()},
+                         {"target", e.target_name()},
+                         {"value", number(e.value)},
+                         {"std", number(a.after.effects_std[i])},
+                         {"p_value", number(a.named[i].p_holm)},
+                         {"delta_chi2", number(a.named[i].delta_chi2)}});
+    }
+    (*j)["effects"] = effects;
+    (*j)["ambiguous"] = nlohmann::json::array();
+    auto gap = [](const core::FitResult& f) {
+      return nlohmann::json{{"reduced_chi2", number(f.reduced_chi2)},
+                            {"rms", number(f.residual_rms)},
+                            {"chi2", number(f.chi2)},
+                            {"dof", f.dof}};
+    };
+    (*j)["gap"] = {{"before", gap(a.before)}, {"after", gap(a.after)}};
+    (*j)["not_screened"] = a.not_screened;
+    nlohmann::json steps = nlohmann::json::array();
+    for (const auto& step : a.steps) {
+      nlohmann::json tests = nlohmann::json::array();
+      for (const core::TumbleEffectTest& t : step)
+        tests.push_back({{"effect", t.effect.label()},
+                         {"value", number(t.effect.value)},
+                         {"std", number(t.std)},
+                         {"delta_chi2", number(t.delta_chi2)},
+                         {"p_raw", number(t.p_raw)},
+                         {"p_holm", number(t.p_holm)}});
+      steps.push_back(tests);
+    }
+    (*j)["screening"] = {{"method", "tumble: refit per candidate, F test, Holm"},
+                         {"steps", steps},
+                         {"stop_reason", a.stop_reason}};
+  }
   if (report.next_pose) {
     const core::PoseSuggestion& p = *report.next_pose;
     (*j)["next_pose"] = {{"up", row_list(p.up)},
@@ -347,7 +386,6 @@ nlohmann::json result_document(const core::CalibrationReport& report,
     }
   }
   if (!report.analysis_error.empty()) j["analysis_error"] = report.analysis_error;
-  if (!report.analysis_not_run.empty()) j["analysis_not_run"] = report.analysis_not_run;
   j["method"] = report.method;
   add_tumble_keys(report, context, &j);
   if (report.budget) j["uncertainty_budget"] = budget_json(*report.budget);

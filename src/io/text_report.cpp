@@ -149,8 +149,19 @@ void write_text_report(std::ostream& out, const core::CalibrationReport& report,
         << ", one more rest there: largest " << report.next_pose->largest_after << ")\n";
     out.precision(precision);
   }
-  if (!report.analysis_not_run.empty())
-    out << "  analysis:      not run: " << report.analysis_not_run << "\n";
+  if (report.tumble_analysis) {
+    const core::TumbleAnalysis& a = *report.tumble_analysis;
+    const auto precision = out.precision(4);
+    out << "\n  analysis (tumble): reduced chi2 " << a.before.reduced_chi2 << " -> "
+        << a.after.reduced_chi2;
+    if (a.named.empty()) out << "; no sensor effect named (" << a.stop_reason << ")";
+    out << "\n";
+    for (std::size_t i = 0; i < a.named.size(); ++i)
+      out << "    named: " << a.after.effects[i].label() << " = " << a.after.effects[i].value
+          << " +- " << a.after.effects_std[i] << " (p " << a.named[i].p_holm << ")\n";
+    for (const std::string& n : a.not_screened) out << "    not screened: " << n << "\n";
+    out.precision(precision);
+  }
   if (!report.analysis) return;
   out << "\n";
   write_analysis_report(out, *report.analysis);

@@ -493,8 +493,6 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   } catch (const std::invalid_argument& e) {
     throw Failure{kOfflineFitBadInput, "fit failed: " + as_one_line(e.what())};
   }
-  if (!report.analysis_not_run.empty())
-    err << kOfflineFitProgram << ": note: --analyze: " << report.analysis_not_run << std::endl;
   if (report.coverage && !report.coverage->complete()) {
     input.context.complete = false;
     for (const std::string& m : report.coverage->missing)

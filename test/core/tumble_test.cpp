@@ -16,6 +16,7 @@
 #include "accel_intrinsics/core/rest_detection.h"
 #include "accel_intrinsics/core/samples_file.h"
 #include "accel_intrinsics/core/tumble.h"
+#include "accel_intrinsics/core/tumble_analysis.h"
 #include "accel_intrinsics/core/tumble_simulator.h"
 
 namespace accel_intrinsics {
@@ -276,6 +277,65 @@ TEST(Tumble, DescribePoseInWords) {
   EXPECT_EQ(describe_pose(Eigen::Vector3d(0, 0, 1)), "z axis pointing straight up");
   EXPECT_EQ(describe_pose(Eigen::Vector3d(-1, 0.05, 0)), "x axis pointing straight down");
   EXPECT_EQ(describe_pose(Eigen::Vector3d(1, 0, -1)), "x axis 45 deg up, z axis 45 deg down");
+}
+
+
+// ---- the tumble's discrepancy analysis --------------------------------------------------------
+
+TumbleRecording analysis_tumble(std::uint64_t seed, const std::vector<Effect>& effects) {
+  TumbleSimulationOptions o;
+  o.truth = random_tumble_device(700 + seed);
+  o.truth.effects = effects;
+  o.seed = seed;
+  o.poses = 30;
+  o.rest_min_s = 3.5;
+  o.rest_max_s = 5.0;
+  return simulate_hand_tumble(o);
+}
+
+// Without effects the nuisance-direction form gives the tumble fit's intrinsics.
+TEST(TumbleAnalysis, BaseFormAgreesWithTheTumbleFit) {
+  const TumbleRecording rec = analysis_tumble(1, {});
+  const PositionTable t = table_of(detect_rests(rec.samples));
+  const FitResult a = fit_tumble(t);
+  const FitResult b = fit_tumble_with_effects(t, {}, kG);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(a.intrinsics.responsivity(k), b.intrinsics.responsivity(k),
+                0.1 * a.intrinsics.responsivity_std(k));
+    EXPECT_NEAR(a.intrinsics.responsivity_std(k), b.intrinsics.responsivity_std(k),
+                0.1 * a.intrinsics.responsivity_std(k));
+  }
+  EXPECT_EQ(a.dof, b.dof);
+}
+
+TEST(TumbleAnalysis, HiddenNonLinearityAndDriftAreNamedAndRecovered) {
+  // K2 of 2e-4 /(m/s^2): 0.02 m/s^2 at 1 g, about 20 standard errors of a rest mean.
+  const std::vector<std::pair<Effect, double>> cases = {
+      {make_effect("quadratic_nonlinearity", "v", 2e-4), 0.0},
+      {make_effect("offset_drift", "w", 1e-4), 0.0}};
+  for (const auto& c : cases) {
+    const TumbleRecording rec = analysis_tumble(3, {c.first});
+    const PositionTable t = table_of(detect_rests(rec.samples));
+    const TumbleAnalysis a = analyze_tumble(t);
+    ASSERT_FALSE(a.named.empty()) << c.first.label();
+    EXPECT_EQ(a.named.front().effect.label(), c.first.label());
+    EXPECT_NEAR(a.after.effects[0].value, c.first.value,
+                statistical_bounds::normal_k(1e-3) * a.after.effects_std[0])
+        << c.first.label();
+    EXPECT_LT(a.after.reduced_chi2, a.before.reduced_chi2);
+    EXPECT_FALSE(a.not_screened.empty());
+  }
+}
+
+TEST(TumbleAnalysis, EffectFreeTumblesRarelyNameAnything) {
+  const int runs = 40;
+  int named = 0;
+  for (int seed = 1; seed <= runs; ++seed) {
+    const TumbleRecording rec = analysis_tumble(100 + seed, {});
+    named += analyze_tumble(table_of(detect_rests(rec.samples))).named.empty() ? 0 : 1;
+  }
+  // Holm at alpha 0.025 per run: the count against binomial(40, 0.025) at 1e-3.
+  EXPECT_LE(named, statistical_bounds::binomial_upper(runs, 0.025, 1e-3)) << named;
 }
 
 // ---- rest detection: edge cases written sample by sample ------------------------------------

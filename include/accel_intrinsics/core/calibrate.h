@@ -15,6 +15,7 @@
 #include "accel_intrinsics/core/quality.h"
 #include "accel_intrinsics/core/raw_stream_analysis.h"
 #include "accel_intrinsics/core/tumble.h"
+#include "accel_intrinsics/core/tumble_analysis.h"
 #include "accel_intrinsics/core/uncertainty_budget.h"
 
 namespace accel_intrinsics {
@@ -79,9 +80,9 @@ struct CalibrationReport {
   // A tumble: which axis directions the rests reached, and the pose that would help most next.
   std::optional<TumbleCoverage> coverage;
   std::optional<PoseSuggestion> next_pose;
-  // Why the discrepancy analysis did not run although asked (a tumble: its effects need known
-  // orientations); empty otherwise.
-  std::string analysis_not_run;
+  // A tumble with analyze: the sensor effects its rests can show (tumble_analysis.h); the
+  // certificate is its refit when the policy is refit and it named effects.
+  std::optional<TumbleAnalysis> tumble_analysis;
 };
 
 // Fit -> analysis -> timing lag -> quality gate. Throws FitError when the fit fails (the message says what is

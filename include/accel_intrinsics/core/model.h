@@ -73,15 +73,15 @@ Eigen::Matrix<T, 3, 1> specific_force(const std::vector<Effect>& terms, const T*
   return f;
 }
 
-// Outputs R_u, R_v, R_w (m/s^2). S_row_major: 9 values (u then v then w); offsets: 3 values;
-// values[i] is the value of terms[i] (terms[i].value is ignored, so a fit can vary it).
-// timing_lag has no term here: it moves IMU stamps, which only raw streams show (simulator.h).
+// Outputs R_u, R_v, R_w for the specific force f (DUT frame, m/s^2) under the sensor effects
+// (non-linearity, drift, temperature: what acts on the outputs, not on the gimbal). A hand tumble
+// (tumble_analysis.h) evaluates it with f a fitted unknown; predict_outputs() with the gimbal's f.
 template <typename T>
-Eigen::Matrix<T, 3, 1> predict_outputs(const T* S_row_major, const T* offsets,
-                                       const std::vector<Effect>& terms, const T* values,
-                                       const DwellGeometry& geom, double g) {
+Eigen::Matrix<T, 3, 1> outputs_for_force(const T* S_row_major, const T* offsets,
+                                         const std::vector<Effect>& terms, const T* values,
+                                         const Eigen::Matrix<T, 3, 1>& f,
+                                         const DwellGeometry& geom) {
   using std::sqrt;
-  const Eigen::Matrix<T, 3, 1> f = specific_force(terms, values, geom, g);
   Eigen::Matrix<T, 3, 1> R;
   for (int s = 0; s < 3; ++s) {
     const T* row = S_row_major + 3 * s;
@@ -113,6 +113,17 @@ Eigen::Matrix<T, 3, 1> predict_outputs(const T* S_row_major, const T* offsets,
     R(s) = out;
   }
   return R;
+}
+
+// Outputs R_u, R_v, R_w (m/s^2). S_row_major: 9 values (u then v then w); offsets: 3 values;
+// values[i] is the value of terms[i] (terms[i].value is ignored, so a fit can vary it).
+// timing_lag has no term here: it moves IMU stamps, which only raw streams show (simulator.h).
+template <typename T>
+Eigen::Matrix<T, 3, 1> predict_outputs(const T* S_row_major, const T* offsets,
+                                       const std::vector<Effect>& terms, const T* values,
+                                       const DwellGeometry& geom, double g) {
+  return outputs_for_force(S_row_major, offsets, terms, values,
+                           specific_force(terms, values, geom, g), geom);
 }
 
 // Convenience for double evaluation of a Device (its effects carry their values).

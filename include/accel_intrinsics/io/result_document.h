@@ -23,7 +23,8 @@
 //   always: method (gimbal|positions|tumble); a tumble: frame, coverage {cone_deg, complete,
 //     missing, closest_deg}, next_pose {up, words, target, ...}, rests [{t_start, t_end, n, mean,
 //     std}], rejected_spans [{t_start, t_end, reason}], rest_detection {quiet_std, rate_hz, ...}
-//     (found in a stream), analysis_not_run (asked, but a tumble has no analysis yet)
+//     (found in a stream); with --analyze, the tumble screen as effects, ambiguous, gap,
+//     not_screened, screening (core/tumble_analysis.h)
 //   from the context: local_gravity_source, stamp (node), samples {used, dropped_*} (node), input, complete, warnings
 //     (offline_fit)
 //
