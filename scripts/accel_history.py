@@ -111,11 +111,11 @@ def run_rule_flags(times, deviations, expanded, parameter):
         if abs(d) > 3.0 * U:
             flags.append({"time": times[i], "parameter": parameter, "rule": "beyond_3U",
                           "index": i})
-        if i >= 2:
-            window = range(i - 2, i + 1)
+        if i >= 1:
+            window = range(max(0, i - 2), i + 1)
             for side in (1.0, -1.0):
                 beyond = [j for j in window if side * deviations[j] > 2.0 * expanded[j]]
-                # the completing point must itself be one of them, or the flag repeats
+                # flagged at the point that completes the pair (so it is flagged once)
                 if len(beyond) >= 2 and i in beyond:
                     flags.append({"time": times[i], "parameter": parameter,
                                   "rule": "two_of_three_beyond_2U", "index": i})
