@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <iomanip>
 #include <memory>
 #include <ostream>
@@ -316,6 +317,45 @@ void write_certificate(const std::string& json, const core::PositionTable& table
   }
 }
 
+// --archive: scripts/archive add on the written result (or a temporary copy), with the position
+// table and the input files (their sha256 names the record). The result files are already
+// written, so a failure to archive is a warning. The URL is never printed here: the script
+// prints it without its password.
+void archive_result(const OfflineFitArguments& args, const std::string& json,
+                    const core::PositionTable& table, std::ostream& err) {
+  const std::string tmp = (std::filesystem::temp_directory_path() / "offline_fit_archive.").string() +
+                          std::to_string(::getpid());
+  const bool json_file = !args.json_out.empty() && args.json_out != "-";
+  const std::string result_path = json_file ? args.json_out : tmp + ".json";
+  const std::string table_path = args.csv_out.empty() ? tmp + ".csv" : args.csv_out;
+  std::vector<std::string> command = {"--archive", args.archive, "add", result_path,
+                                      "--positions", table_path, "--added-by", "offline_fit",
+                                      "--input"};
+  for (const std::string& input : args.bags.empty() ? std::vector<std::string>{args.csv} : args.bags)
+    command.push_back(input);
+  if (!args.device.empty()) command.insert(command.end(), {"--device", args.device});
+  if (!args.rig.empty()) command.insert(command.end(), {"--rig", args.rig});
+  int status = -1;
+  try {
+    if (!json_file) io::write_file_atomically(result_path, json);
+    if (args.csv_out.empty()) {
+      io::AtomicFile file(table_path);
+      core::write_position_table(file.stream(), table);
+      file.close();
+      file.commit();
+    }
+    status = run_package_script("archive", command);
+  } catch (const std::exception& e) {
+    err << kOfflineFitProgram << ": warning: --archive: " << as_one_line(e.what()) << std::endl;
+  }
+  if (!json_file) std::remove(result_path.c_str());
+  if (args.csv_out.empty()) std::remove(table_path.c_str());
+  if (status != 0) {
+    err << kOfflineFitProgram << ": warning: --archive: the result was not archived ("
+        << package_script("archive") << " exit status " << status << ")" << std::endl;
+  }
+}
+
 int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   check_command_line(args);
   core::CalibrateOptions options;
@@ -409,6 +449,8 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
     write_certificate(json, input.table, report.certificate, args.report_pdf,
                       args.json_out.empty() || json_to_stdout ? "(not saved: offline_fit --json)"
                                                               : args.json_out);
+
+  if (!args.archive.empty()) archive_result(args, json, input.table, err);
 
   io::write_text_report(json_to_stdout ? err : out, report, input.context);
   if (json_to_stdout) out << json << std::flush;
