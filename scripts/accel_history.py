@@ -12,9 +12,12 @@ import math
 
 import numpy as np
 
-from accel_archive import DEFAULT_K, PARAMETER_NAMES, iso
+from accel_archive import DEFAULT_K, PARAMETER_NAMES, iso, parse_time
 
 SECONDS_PER_DAY = 86400.0
+LABELS = {"responsivity_u": "|u|", "responsivity_v": "|v|", "responsivity_w": "|w|",
+          "angle_uv": "angle uv (deg)", "angle_vw": "angle vw (deg)", "angle_wu": "angle wu (deg)",
+          "offset_u": "O_u", "offset_v": "O_v", "offset_w": "O_w"}
 # A drift is taken as real (and a recalibration date predicted) when |rate| exceeds this many
 # standard uncertainties of the rate: the same k as the expanded uncertainties.
 DRIFT_SIGNIFICANCE_K = DEFAULT_K
@@ -173,3 +176,83 @@ def compare_rigs(records):
                 "consistent": all(v is not None and abs(v) <= 1.0 for v in values.values())})
     out["consistent"] = all(p["consistent"] for p in out["E_n_between_rigs"])
     return out
+
+
+# --- Plots (matplotlib, imported only here) -------------------------------------------------------
+
+def _pyplot():
+    import matplotlib
+    if matplotlib.get_backend().lower() not in ("agg", "pdf"):
+        matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _dates(items):
+    return [parse_time(p["time"]) for p in items]
+
+
+def history_figure(doc, title, figsize=(13, 9)):
+    """The history plot: each parameter with its U, the drift line, recalibrate_by."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(3, 3, figsize=figsize, sharex=True)
+    times = _dates(doc["records"])
+    for ax, name in zip(axes.flat, PARAMETER_NAMES):
+        values = [r["values"][name] for r in doc["records"]]
+        expanded = [r["expanded"][name] for r in doc["records"]]
+        ax.errorbar(times, values, yerr=expanded, fmt="o", capsize=3, label="result +- U")
+        drift = doc["drift"].get(name)
+        if drift and len(times) >= 2:
+            # the weighted line through the history, anchored at the weighted mean
+            t0 = times[0]
+            days = [days_between(t0, t) for t in times]
+            w = [1.0 / (U / 2.0) ** 2 for U in expanded]
+            mean_t = sum(wi * d for wi, d in zip(w, days)) / sum(w)
+            mean_x = sum(wi * v for wi, v in zip(w, values)) / sum(w)
+            ends = [min(days), max(days)]
+            recal = doc["recalibrate_by"].get(name)
+            if recal:
+                ends[1] = max(ends[1], days_between(t0, parse_time(recal)))
+            line_t = [t0 + datetime.timedelta(days=d) for d in ends]
+            line_x = [mean_x + drift["rate_per_day"] * (d - mean_t) for d in ends]
+            ax.plot(line_t, line_x, "--", color="C1" if drift["significant"] else "0.6",
+                    label="drift %.3g +- %.2g /day" % (drift["rate_per_day"],
+                                                       drift["rate_std_per_day"]))
+            if recal:
+                ax.axvline(parse_time(recal), color="C3", linestyle=":",
+                           label="recalibrate by %s" % recal)
+        ax.set_title(LABELS[name], fontsize=10)
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+    fig.autofmt_xdate()
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def chart_figure(doc, title, figsize=(13, 9)):
+    """The control chart plot: deviations from the reference, 2U and 3U limits, flags."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(3, 3, figsize=figsize, sharex=True)
+    times = _dates(doc["points"])
+    for ax, name in zip(axes.flat, PARAMETER_NAMES):
+        d = [p["deviation"][name] for p in doc["points"]]
+        U = [p["expanded"][name] for p in doc["points"]]
+        ax.plot(times, d, "o-", label="result - reference")
+        for m, style in ((2, "--"), (3, "-")):
+            ax.step(times, [m * u for u in U], style, where="mid", color="C1" if m == 2 else "C3",
+                    label="+-%dU" % m)
+            ax.step(times, [-m * u for u in U], style, where="mid", color="C1" if m == 2 else "C3")
+        ax.axhline(0.0, color="0.5", linewidth=0.8)
+        flagged = [(parse_time(f["time"]), doc["points"][f["index"]]["deviation"][name])
+                   for f in doc["flags"] if f["parameter"] == name]
+        if flagged:
+            ax.plot([f[0] for f in flagged], [f[1] for f in flagged], "x", color="C3",
+                    markersize=11, label="run rule")
+        ax.set_title("%s (reference %.6g)" % (LABELS[name], doc["reference"][name]), fontsize=10)
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+    fig.autofmt_xdate()
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig

@@ -300,14 +300,16 @@ void check_command_line(const OfflineFitArguments& args) {
 // of the JSON; the script writes the PDF atomically and prints one line on failure.
 void write_certificate(const std::string& json, const core::PositionTable& table,
                        const core::FitResult& certificate, const std::string& pdf,
-                       const std::string& result_name) {
+                       const std::string& result_name, const std::string& history_archive) {
   const std::string tmp = pdf + ".json.tmp." + std::to_string(::getpid());
   const std::string residuals = pdf + ".residuals.tmp." + std::to_string(::getpid());
   io::write_file_atomically(tmp, json);
   io::write_residuals_csv(residuals, table, certificate, certificate);
-  const int status = run_package_script(
-      "certificate_report",
-      {"--out", pdf, "--residuals", residuals, "--result-name", result_name, tmp});
+  std::vector<std::string> report_args = {"--out", pdf, "--residuals", residuals,
+                                          "--result-name", result_name, tmp};
+  // the device's history page, from the archive this result just went into
+  if (!history_archive.empty()) report_args.insert(report_args.begin(), {"--history-archive", history_archive});
+  const int status = run_package_script("certificate_report", report_args);
   std::remove(tmp.c_str());
   std::remove(residuals.c_str());
   if (status != 0) {
@@ -320,8 +322,8 @@ void write_certificate(const std::string& json, const core::PositionTable& table
 // --archive: scripts/archive add on the written result (or a temporary copy), with the position
 // table and the input files (their sha256 names the record). The result files are already
 // written, so a failure to archive is a warning. The URL is never printed here: the script
-// prints it without its password.
-void archive_result(const OfflineFitArguments& args, const std::string& json,
+// prints it without its password. Returns whether the result is in the archive.
+bool archive_result(const OfflineFitArguments& args, const std::string& json,
                     const core::PositionTable& table, std::ostream& err) {
   const std::string tmp = (std::filesystem::temp_directory_path() / "offline_fit_archive.").string() +
                           std::to_string(::getpid());
@@ -354,6 +356,7 @@ void archive_result(const OfflineFitArguments& args, const std::string& json,
     err << kOfflineFitProgram << ": warning: --archive: the result was not archived ("
         << package_script("archive") << " exit status " << status << ")" << std::endl;
   }
+  return status == 0;
 }
 
 int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
@@ -445,12 +448,12 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   for (const auto& e : exports) {
     if (!e.second.notice.empty()) err << kOfflineFitProgram << ": note: " << e.second.notice << std::endl;
   }
+  const bool archived = !args.archive.empty() && archive_result(args, json, input.table, err);
   if (!args.report_pdf.empty())
     write_certificate(json, input.table, report.certificate, args.report_pdf,
                       args.json_out.empty() || json_to_stdout ? "(not saved: offline_fit --json)"
-                                                              : args.json_out);
-
-  if (!args.archive.empty()) archive_result(args, json, input.table, err);
+                                                              : args.json_out,
+                      archived ? args.archive : "");
 
   io::write_text_report(json_to_stdout ? err : out, report, input.context);
   if (json_to_stdout) out << json << std::flush;

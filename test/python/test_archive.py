@@ -5,6 +5,7 @@ import copy
 import datetime
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -142,8 +143,10 @@ def test_add_is_deduplicated_and_history_reads_it(archive_url, tmp_path):
     assert run_archive("--archive", archive_url, "add", changed, "--time", "2026-02-01",
                        "--rig", "bench").returncode == 0
     assert count(archive_url, "records") == 2
-    out = run_history("DUT-1", "--archive", archive_url, "--json", tmp_path / "h.json")
+    out = run_history("DUT-1", "--archive", archive_url, "--json", tmp_path / "h.json",
+                      "--plot", tmp_path / "h.png")
     assert out.returncode == 0, out.stderr
+    assert os.path.getsize(str(tmp_path / "h.png")) > 10000
     with open(str(tmp_path / "h.json")) as f:
         doc = json.load(f)
     assert [r["time"] for r in doc["records"]] == ["2026-01-01T00:00:00Z", "2026-02-01T00:00:00Z"]
@@ -175,6 +178,14 @@ def test_real_result_with_position_table(archive_url, tmp_path):
     assert rows[0]["input_sha256"] == aa.sha256_files([table])
     assert rows[0]["method"] == "positions"
     assert stored == aa.load_result(REAL_RESULT)
+    # the certificate with the device's history page (a third page)
+    pdf = str(tmp_path / "certificate.pdf")
+    out = subprocess.run([PYTHON, os.path.join(SCRIPTS, "certificate_report"), "--out", pdf,
+                          "--history-archive", archive_url, REAL_RESULT],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True)
+    assert out.returncode == 0, out.stderr
+    info = subprocess.run(["pdfinfo", pdf], stdout=subprocess.PIPE, universal_newlines=True)
+    assert re.search(r"^Pages:\s+3$", info.stdout, re.M), info.stdout
 
 
 def test_concurrent_writers_lose_nothing(archive_url, tmp_path):
