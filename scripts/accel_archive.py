@@ -329,6 +329,10 @@ def result_time(result):
 def make_record(result, device=None, rig=None, when=None, position_table_text=None,
                 input_sha256=None, input_paths=None, added_by="archive add"):
     """The row of one result (a dict) and its parameter rows. Raises ArchiveError."""
+    quality = result.get("quality")
+    if isinstance(quality, dict) and quality.get("pass") is False:
+        raise ArchiveError("the result fails the quality gate (%s): it is not a calibration and "
+                           "is not archived" % "; ".join(map(str, quality.get("reasons") or [])))
     certificate = result.get("certificate") or {}
     serial = str(certificate.get("serial", "")).strip()
     if device:

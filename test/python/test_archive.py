@@ -115,6 +115,14 @@ def test_method_serial_rig_and_time():
         aa.parse_time("yesterday")
 
 
+def test_result_failing_the_quality_gate_is_refused():
+    failed = dict(synthetic_result(), quality={"pass": False, "reasons": ["reduced chi2 40"]})
+    with pytest.raises(aa.ArchiveError, match="quality gate \\(reduced chi2 40\\)"):
+        aa.make_record(failed)
+    passed = dict(synthetic_result(), quality={"pass": True, "reasons": []})
+    assert aa.make_record(passed)[0]["device_serial"] == "DUT-1"
+
+
 def test_bad_result_is_a_clear_error(tmp_path):
     bad = synthetic_result()
     del bad["angles_deg"]["vw"]
