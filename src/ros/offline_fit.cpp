@@ -337,6 +337,7 @@ bool archive_result(const OfflineFitArguments& args, const std::string& json,
     command.push_back(input);
   if (!args.device.empty()) command.insert(command.end(), {"--device", args.device});
   if (!args.rig.empty()) command.insert(command.end(), {"--rig", args.rig});
+  if (!json_file && args.json_out == "-") command.push_back("--quiet");  // stdout holds the JSON
   int status = -1;
   try {
     if (!json_file) io::write_file_atomically(result_path, json);
