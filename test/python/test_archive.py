@@ -164,6 +164,9 @@ def test_add_is_deduplicated_and_history_reads_it(archive_url, tmp_path):
     assert doc["E_n_consecutive"]["responsivity_u"][0] == pytest.approx(
         1.01e-3 / (2 ** 0.5 * 2e-4))
     assert set(doc["drift"]) == set(aa.PARAMETER_NAMES)
+    # --json -: stdout is the JSON alone
+    piped = run_history("DUT-1", "--archive", archive_url, "--json", "-")
+    assert json.loads(piped.stdout)["records"] == doc["records"]
     # the whole result and the position table are kept
     engine = aa.open_archive(archive_url)
     stored, table = aa.fetch_result(engine, doc["records"][0]["id"])
