@@ -9,15 +9,18 @@
 #
 #   bash tools/archive_drift_demo.sh [URL]      (default: a SQLite file in a temporary directory)
 #
-# Needs the built workspace ($ACCEL_WS; tools/build.sh calibration accelerometer
-# gimbal_controller sim_clock). Ends with "archive drift demo: OK" or a FAILED line (exit 1).
+# Needs the built workspace (the sourced one, else $ACCEL_WS; tools/build.sh calibration
+# accelerometer gimbal_controller sim_clock accel_intrinsics_generate_messages_py). Ends with
+# "archive drift demo: OK" or a FAILED line (exit 1). test/python/test_drift_on_stand.py runs it.
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
-source_workspace
+# run_tests (test/python/test_drift_on_stand.py) runs it in the sourced workspace already
+rospack find accel_intrinsics >/dev/null 2>&1 || source_workspace
 
 RUNS=${RUNS:-5}
 AGE_STEP_DAYS=${AGE_STEP_DAYS:-30}
 RATE_U=${RATE_U:-2e-6}  # relative drift of |u| per day
-work=$(mktemp -d /tmp/archive_drift_demo.XXXXXX)
+work=${ARCHIVE_DEMO_DIR:-$(mktemp -d /tmp/archive_drift_demo.XXXXXX)}
+mkdir -p "$work"
 URL=${1:-sqlite:///$work/archive.db}
 NODE_URL=sqlite:///$work/node_archive.db
 port=$((20000 + RANDOM % 20000))
@@ -29,13 +32,17 @@ for ((i = 0; i < RUNS; i++)); do
   age=$((i * AGE_STEP_DAYS))
   date=$(date -u -d "2026-01-01 + $age days" +%Y-%m-%dT10:00:00Z)
   printf 'device:\n  aging:\n    age_days: %s\n    responsivity_per_day: [%s, 0.0, 0.0]\nseed: %s\n' \
-    "$age" "$RATE_U" "$((i + 1))" >"$work/aging_$age.yaml"
+    "$age" "$(printf '%.6e' "$RATE_U")" "$((i + 1))" >"$work/aging_$age.yaml"  # YAML 1.1: a float needs its dot
   echo "[demo] run $((i + 1))/$RUNS: device age $age days, date $date"
   roslaunch -p "$port" accel_intrinsics test_stand.launch steps:=12 time_scale:=20 \
     output:=log output_dir:="$work/run_$age" device_extra_config:="$work/aging_$age.yaml" \
     calibration_extra_config:="$work/node_archive.yaml" \
     >"$work/roslaunch_$age.log" 2>&1 &
   launch_pid=$!
+  for ((wait_s = 0; wait_s < 60; wait_s++)); do  # the master and the parameters are up
+    rosparam get /calibration/output_dir >/dev/null 2>&1 && break
+    sleep 1
+  done
   ok=0
   rosrun accel_intrinsics supervise --archive "$URL" --device SIM-AGING-1 --rig sim_stand \
     --time "$date" --quiet --yes --timeout 900 --service-timeout 60 \
