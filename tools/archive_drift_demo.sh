@@ -12,9 +12,14 @@
 # Needs the built workspace (the sourced one, else $ACCEL_WS; tools/build.sh calibration
 # accelerometer gimbal_controller sim_clock accel_intrinsics_generate_messages_py). Ends with
 # "archive drift demo: OK" or a FAILED line (exit 1). test/python/test_drift_on_stand.py runs it.
+sourced_pythonpath=${PYTHONPATH:-}
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 # run_tests (test/python/test_drift_on_stand.py) runs it in the sourced workspace already
-rospack find accel_intrinsics >/dev/null 2>&1 || source_workspace
+if rospack find accel_intrinsics >/dev/null 2>&1 && [ -n "$sourced_pythonpath" ]; then
+  export PYTHONPATH=$sourced_pythonpath  # the workspace's messages (common.sh unset it)
+else
+  source_workspace
+fi
 
 RUNS=${RUNS:-5}
 AGE_STEP_DAYS=${AGE_STEP_DAYS:-30}
