@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <exception>
 #include <limits>
+#include <stdexcept>
 
 namespace accel_intrinsics {
 namespace core {
@@ -17,6 +18,13 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
   report.certificate = report.base_fit;
   report.noise = dwell_noise(table);
   if (!options.analyze) return report;
+  if (report.base_fit.model == FitModel::Tumble) {
+    report.analysis_not_run =
+        "the discrepancy analysis needs known orientations (gimbal angles or f_x,f_y,f_z): a "
+        "hand tumble cannot show angle, axis-tilt, backlash or timing effects, and its screen for "
+        "non-linearity, drift and temperature is not built yet";
+    return report;
+  }
 
   AnalysisOptions analysis_options = options.analysis;
   analysis_options.local_gravity = options.fit.local_gravity;
@@ -59,9 +67,29 @@ std::optional<RunTemperature> run_temperature(const PositionTable& table) {
   return t;
 }
 
+std::string calibration_method(const PositionTable& table) {
+  if (!table.rows.empty() && rows_with_unknown_orientation(table) == table.rows.size())
+    return "tumble";
+  if (rows_with_direction(table) > 0) return "positions";
+  return "gimbal";
+}
+
 CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
                             const CalibrateOptions& options) {
   CalibrationReport report = fit_and_analyze(table, raw, options);
+  report.method = calibration_method(table);
+  if (report.base_fit.model == FitModel::Tumble) {
+    report.coverage = tumble_coverage(report.base_fit, table);
+    report.next_pose = suggest_next_pose(report.base_fit, table);
+    // Gimbal angles, tilts and mounts do not exist in a tumble: its type B is g alone.
+    const BudgetSpec* b = options.budget ? &*options.budget : nullptr;
+    if (b && (b->angle_random_std_deg != 0.0 || b->angle_offset_std_deg != 0.0 ||
+              b->angle_scale_std != 0.0 || b->axis_tilt_std_deg != 0.0 ||
+              b->mount_misalignment_std_deg != 0.0))
+      throw std::invalid_argument(
+          "a hand tumble's budget takes gravity_std_rel only: it has no gimbal angles, tilts or "
+          "mounts (set the other sources to 0 or leave them out)");
+  }
   report.temperature = run_temperature(table);
   report.output_unit = options.output_unit.empty() ? "m/s^2" : options.output_unit;
   QualityOptions quality = options.quality;

@@ -31,6 +31,7 @@
 
 #include "accel_intrinsics/core/model.h"
 #include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/tumble.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -39,6 +40,7 @@ const char* model_name(FitModel model) {
   switch (model) {
     case FitModel::Joint: return "joint";
     case FitModel::Eq4: return "eq4";
+    case FitModel::Tumble: return "tumble";
   }
   return "unknown";
 }
@@ -355,7 +357,8 @@ Eigen::MatrixXd checked_inverse(const Eigen::MatrixXd& N, const std::vector<std:
   return 0.5 * (inv + inv.transpose());
 }
 
-// Fills everything derived from S, O and their covariance (already chi2-scaled).
+}  // namespace
+
 void finish_result(FitResult& r, const Eigen::Matrix<double, 12, 12>& covariance) {
   r.covariance = 0.5 * (covariance + covariance.transpose());
   for (int s = 0; s < 3; ++s) r.O_std(s) = std::sqrt(std::max(0.0, r.covariance(9 + s, 9 + s)));
@@ -377,6 +380,8 @@ void finish_result(FitResult& r, const Eigen::Matrix<double, 12, 12>& covariance
   for (int k = 0; k < 9; ++k)
     r.cross_sensitivity_std(k / 3, k % 3) = std::sqrt(std::max(0.0, cov_P(k, k)));
 }
+
+namespace {
 
 // Residuals, chi2, dof, rms. `model_of_row(i)` returns the model outputs of row i.
 template <typename ModelOfRow>
@@ -765,6 +770,22 @@ FitResult fit(const PositionTable& table, const FitOptions& options) {
     validate_effects(options.effects, options.model, {});
   }
   validate_rows(table);
+  // Rests of unknown orientation (a hand tumble): only |P (mean - O)| = g can take them.
+  const std::size_t unknown = rows_with_unknown_orientation(table);
+  if (unknown > 0) {
+    if (unknown != table.rows.size())
+      throw FitError(std::to_string(unknown) + " of " + std::to_string(table.rows.size()) +
+                     " rows have an unknown orientation (phase '-' without f_x,f_y,f_z): a table "
+                     "is either a tumble (all unknown) or known orientations, not both");
+    if (options.model == FitModel::Eq4)
+      throw FitError("eq4 needs the gimbal's three phases; rests of unknown orientation are "
+                     "fitted by the tumble fit (model joint)");
+    if (!options.effects.empty())
+      throw FitError("effect terms need known orientations; a tumble fit has none");
+    TumbleFitOptions tumble;
+    tumble.local_gravity = options.local_gravity;
+    return fit_tumble(table, tumble);
+  }
   if (options.model == FitModel::Eq4) {
     for (std::size_t i = 0; i < table.rows.size(); ++i) {
       if (table.rows[i].has_direction)

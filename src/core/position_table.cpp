@@ -163,16 +163,18 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
     }
     const std::string phase = trim(fields[0]);
     if (phase == "-" && !row.has_direction) {
-      fail(source_name, line_number, "phase '-' needs the direction f_x,f_y,f_z");
+      // A rest of unknown orientation (hand tumble): angle_rad may be empty.
+      row.orientation_unknown = true;
     } else if (phase != "-" && !parse_phase(phase, &row.phase)) {
       fail(source_name, line_number,
-           "field phase must be x, y or z (or - with f_x,f_y,f_z), got '" + phase + "'");
+           "field phase must be x, y or z (or - for a known direction f_x,f_y,f_z or a rest of "
+           "unknown orientation), got '" + phase + "'");
     }
     const std::uint64_t step = parse_count(fields[1], source_name, line_number, 1);
     if (step > std::numeric_limits<std::uint32_t>::max())
       fail(source_name, line_number, "field step is too large");
     row.step = static_cast<std::uint32_t>(step);
-    row.angle_rad = row.has_direction && trim(fields[2]).empty()
+    row.angle_rad = (row.has_direction || row.orientation_unknown) && trim(fields[2]).empty()
                         ? 0.0
                         : parse_double(fields[2], source_name, line_number, 2);
     row.t_start_s = parse_double(fields[3], source_name, line_number, 3);
@@ -213,7 +215,8 @@ namespace {
 void write_row(std::ostream& out, const DwellRecord& row, bool direction_columns,
                bool temperature_column) {
   const auto precision = out.precision(std::numeric_limits<double>::max_digits10);
-  out << (row.has_direction ? "-" : phase_name(row.phase)) << ',' << row.step << ','
+  out << (row.has_direction || row.orientation_unknown ? "-" : phase_name(row.phase)) << ','
+      << row.step << ','
       << row.angle_rad << ',' << row.t_start_s << ',' << row.t_end_s << ',' << row.n;
   for (int k = 0; k < 3; ++k) out << ',' << row.mean(k);
   for (int k = 0; k < 3; ++k) out << ',' << row.std(k);
@@ -338,7 +341,7 @@ int approach_of_appended_row(const PositionTable& table, Phase phase, double ang
 std::array<int, 3> positions_per_phase(const PositionTable& table) {
   std::array<int, 3> counts{{0, 0, 0}};
   for (const DwellRecord& row : table.rows) {
-    if (!row.has_direction) ++counts[index(row.phase)];
+    if (!row.has_direction && !row.orientation_unknown) ++counts[index(row.phase)];
   }
   return counts;
 }
@@ -347,6 +350,21 @@ std::size_t rows_with_direction(const PositionTable& table) {
   std::size_t n = 0;
   for (const DwellRecord& row : table.rows) n += row.has_direction ? 1 : 0;
   return n;
+}
+
+std::size_t rows_with_unknown_orientation(const PositionTable& table) {
+  std::size_t n = 0;
+  for (const DwellRecord& row : table.rows) n += row.orientation_unknown ? 1 : 0;
+  return n;
+}
+
+PositionTable forget_orientations(PositionTable table) {
+  for (DwellRecord& row : table.rows) {
+    row.orientation_unknown = true;
+    row.has_direction = false;
+    row.direction.setZero();
+  }
+  return table;
 }
 
 }  // namespace core

@@ -72,7 +72,8 @@ nlohmann::json counters_json(const core::AssemblerCounters& c) {
 }
 
 nlohmann::json input_json(const InputDescription& in) {
-  if (!in.bag) return {{"type", "csv"}, {"path", in.path}, {"rows", in.dwells}};
+  if (!in.bag)
+    return {{"type", in.type.empty() ? "csv" : in.type}, {"path", in.path}, {"rows", in.dwells}};
   const BagInputDescription& b = *in.bag;
   const core::AssemblerCounters& c = b.counters;
   return {
@@ -201,6 +202,58 @@ class Reader {
 const char* const kAccelerometers[3] = {"u", "v", "w"};
 const char* const kAngles[3] = {"uv", "vw", "wu"};
 
+// A hand tumble's keys (DESIGN.md section 11): the frame of S, the rests and rejected spans, the
+// detector's levels, the coverage and the pose to try next.
+void add_tumble_keys(const core::CalibrationReport& report, const ResultContext& context,
+                     nlohmann::json* j) {
+  if (report.certificate.model == core::FitModel::Tumble) (*j)["frame"] = core::kTumbleFrame;
+  if (context.rest_detection) {
+    const core::RestDetection& d = *context.rest_detection;
+    nlohmann::json rests = nlohmann::json::array();
+    for (const core::DwellRecord& r : d.rests) {
+      rests.push_back({{"t_start", number(r.t_start_s)},
+                       {"t_end", number(r.t_end_s)},
+                       {"n", r.n},
+                       {"mean", accelerometer_object(r.mean)},
+                       {"std", accelerometer_object(r.std)}});
+    }
+    (*j)["rests"] = rests;
+    nlohmann::json rejected = nlohmann::json::array();
+    for (const core::RejectedSpan& r : d.rejected) {
+      rejected.push_back(
+          {{"t_start", number(r.t_start_s)}, {"t_end", number(r.t_end_s)}, {"reason", r.reason}});
+    }
+    (*j)["rejected_spans"] = rejected;
+    if (d.samples > 0) {
+      (*j)["rest_detection"] = {{"quiet_std", accelerometer_object(d.quiet_std)},
+                                {"rate_hz", number(d.rate_hz)},
+                                {"block_samples", d.block_samples},
+                                {"samples", d.samples},
+                                {"rest_min_s", number(context.rest_min_s)}};
+    }
+  }
+  if (report.coverage) {
+    const core::TumbleCoverage& c = *report.coverage;
+    nlohmann::json closest = nlohmann::json::object();
+    for (int s = 0; s < 3; ++s)
+      closest[core::accelerometer_name(s)] = {{"up", number(c.closest_deg[s][0])},
+                                              {"down", number(c.closest_deg[s][1])}};
+    (*j)["coverage"] = {{"cone_deg", number(c.cone_deg)},
+                        {"complete", c.complete()},
+                        {"missing", c.missing},
+                        {"closest_deg", closest}};
+  }
+  if (report.next_pose) {
+    const core::PoseSuggestion& p = *report.next_pose;
+    (*j)["next_pose"] = {{"up", row_list(p.up)},
+                         {"words", p.words},
+                         {"target", p.target},
+                         {"relative_std_now", number(p.relative_std_now)},
+                         {"relative_std_after", number(p.relative_std_after)},
+                         {"largest_relative_std_after", number(p.largest_after)}};
+  }
+}
+
 }  // namespace
 
 namespace detail {
@@ -294,6 +347,9 @@ nlohmann::json result_document(const core::CalibrationReport& report,
     }
   }
   if (!report.analysis_error.empty()) j["analysis_error"] = report.analysis_error;
+  if (!report.analysis_not_run.empty()) j["analysis_not_run"] = report.analysis_not_run;
+  j["method"] = report.method;
+  add_tumble_keys(report, context, &j);
   if (report.budget) j["uncertainty_budget"] = budget_json(*report.budget);
   if (!context.certificate.empty()) {
     nlohmann::json fields = nlohmann::json::object();
@@ -305,7 +361,9 @@ nlohmann::json result_document(const core::CalibrationReport& report,
   if (context.samples) j["samples"] = counters_json(*context.samples);
   if (context.input) {
     j["input"] = input_json(*context.input);
-    j["complete"] = context.input->bag ? nlohmann::json(context.complete) : nlohmann::json(nullptr);
+    // A CSV position table cannot tell whether its run was complete; a bag, a stream can.
+    j["complete"] = context.input->bag || context.rest_detection ? nlohmann::json(context.complete)
+                                                                 : nlohmann::json(nullptr);
     j["warnings"] = context.warnings;
   }
   return j;
@@ -351,7 +409,8 @@ StoredResult read_result_file(const std::string& path) {
   const std::string model = r.child(root, "model", "").as<std::string>("");
   out.model_label = root["model_label"] ? root["model_label"].as<std::string>("") : model;
   try {
-    out.model = core::parse_model(model.substr(0, model.find('+')));
+    const std::string family = model.substr(0, model.find('+'));
+    out.model = family == "tumble" ? core::FitModel::Tumble : core::parse_model(family);
   } catch (const std::invalid_argument& e) {
     r.fail(std::string("key 'model': ") + e.what());
   }

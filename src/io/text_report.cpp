@@ -12,7 +12,8 @@
 namespace accel_intrinsics {
 namespace io {
 
-void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultContext& context) {
+void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultContext& context,
+                      const std::string& output_unit) {
   const core::Intrinsics& in = r.intrinsics;
   out << "accel_intrinsics offline_fit\n";
   if (context.input) {
@@ -24,8 +25,13 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
   for (const std::string& w : context.warnings) out << "warning:       " << w << "\n";
   out << "model:         " << r.model_label() << "\n";
   out << "local gravity: " << std::setprecision(9) << r.local_gravity << " m/s^2\n";
-  out << "positions:     x " << r.positions[0] << ", y " << r.positions[1] << ", z "
-      << r.positions[2] << "\n\n";
+  if (r.model == core::FitModel::Tumble) {
+    out << "method:        hand tumble, orientations unknown: intrinsics only (S in the sensor's own "
+           "frame)\n\n";
+  } else {
+    out << "positions:     x " << r.positions[0] << ", y " << r.positions[1] << ", z "
+        << r.positions[2] << "\n\n";
+  }
 
   auto line = [&out](const std::string& name, double value, double std_value,
                      const std::string& unit) {
@@ -45,7 +51,7 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
          "deg");
   }
   for (int s = 0; s < 3; ++s) {
-    line(std::string("O_") + core::accelerometer_name(s), r.O(s), r.O_std(s), "m/s^2");
+    line(std::string("O_") + core::accelerometer_name(s), r.O(s), r.O_std(s), output_unit);
   }
   if (r.model == core::FitModel::Eq4) {
     for (int s = 0; s < 3; ++s) {
@@ -60,7 +66,9 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
     line(r.effects[i].label(), r.effects[i].value,
          i < r.effects_std.size() ? r.effects_std[i] : NAN, "");
   }
-  out << "\n  vectors (rows of S, DUT frame x y z):\n";
+  out << (r.model == core::FitModel::Tumble
+              ? "\n  vectors (rows of S, sensor frame: u along x, v in the x-y plane):\n"
+              : "\n  vectors (rows of S, DUT frame x y z):\n");
   for (int s = 0; s < 3; ++s) {
     out << "    " << core::accelerometer_name(s) << " = [";
     for (int c = 0; c < 3; ++c) {
@@ -78,7 +86,7 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
   }
   out << "\n  reduced chi2:  " << std::setprecision(6) << r.reduced_chi2 << " (chi2 " << r.chi2
       << ", dof " << r.dof << ")\n";
-  out << "  residual rms:  " << std::setprecision(6) << r.residual_rms << " m/s^2\n";
+  out << "  residual rms:  " << std::setprecision(6) << r.residual_rms << " " << output_unit << "\n";
   out.flush();
 }
 
@@ -106,7 +114,7 @@ void write_budget_report(std::ostream& out, const core::UncertaintyBudget& b,
 
 void write_text_report(std::ostream& out, const core::CalibrationReport& report,
                        const ResultContext& context) {
-  write_fit_report(out, report.certificate, context);
+  write_fit_report(out, report.certificate, context, report.output_unit);
   if (report.output_unit != "m/s^2") {
     out << "  output unit:   " << report.output_unit << " (responsivities in " << report.output_unit
         << " per m/s^2, offsets in " << report.output_unit << ")\n";
@@ -122,6 +130,27 @@ void write_text_report(std::ostream& out, const core::CalibrationReport& report,
   out << "  quality gate:  " << (report.quality.pass ? "passed" : "FAILED") << "\n";
   for (const std::string& reason : report.quality.reasons) out << "    - " << reason << "\n";
   if (report.budget) write_budget_report(out, *report.budget, report.output_unit);
+  if (context.rest_detection) {
+    const core::RestDetection& d = *context.rest_detection;
+    out << "  rests:         " << d.rests.size() << " fitted";
+    if (!d.rejected.empty()) out << ", " << d.rejected.size() << " spans rejected (JSON rejected_spans)";
+    out << "\n";
+  }
+  if (report.coverage) {
+    out << "  coverage:      "
+        << (report.coverage->complete() ? "every axis up and down within 45 deg" : "INCOMPLETE")
+        << "\n";
+    for (const std::string& m : report.coverage->missing) out << "    - " << m << "\n";
+  }
+  if (report.next_pose) {
+    const auto precision = out.precision(2);
+    out << "  next pose:     " << report.next_pose->words << " (largest relative uncertainty "
+        << report.next_pose->target << " " << report.next_pose->relative_std_now
+        << ", one more rest there: largest " << report.next_pose->largest_after << ")\n";
+    out.precision(precision);
+  }
+  if (!report.analysis_not_run.empty())
+    out << "  analysis:      not run: " << report.analysis_not_run << "\n";
   if (!report.analysis) return;
   out << "\n";
   write_analysis_report(out, *report.analysis);

@@ -15,7 +15,7 @@ namespace ai = accel_intrinsics;
 int main(int argc, char** argv) {
   CLI::App app{
       "Recalibrates a three-axis accelerometer offline from a recorded bag (read directly, no "
-      "playback) or a CSV position table, and prints the intrinsic parameters with their "
+      "playback), a CSV position table or the raw samples of a hand tumble, and prints the intrinsic parameters with their "
       "standard uncertainties."};
   app.footer(
       "Exit status: 0 success; 1 bad input (also IMU and gimbal on different clocks) or failed "
@@ -33,6 +33,19 @@ int main(int argc, char** argv) {
                      " (optionally" + ai::core::kDirectionColumns +
                      ": known orientations, phase '-'; optionally" +
                      ai::core::kTemperatureColumn + ": dwell temperature in C)");
+  app.add_option("--samples", args.samples,
+                 "raw samples of a hand tumble: t,x,y,z a line (seconds, then the three outputs in "
+                 "any unit), comma or whitespace, header optional; rests are found in the stream")
+      ->type_name("FILE");
+  app.add_flag("--unknown-orientations", args.unknown_orientations,
+               "fit a gimbal run's dwells (--bag or --csv) as rests of unknown orientation, as a "
+               "hand tumble is fitted; compare with the gimbal fit to tell a gimbal angle error "
+               "from a device property");
+  auto* rest_min = app.add_option("--rest-min-s", args.rest_min_s,
+                                  "shortest rest kept when rests are found in a stream (--samples, "
+                                  "or a bag without gimbal commands)")
+                       ->type_name("SECONDS")
+                       ->capture_default_str();
   auto* imu =
       app.add_option("--imu-topic", args.imu_topic, "IMU topic in the bag (sensor_msgs/Imu)")
           ->capture_default_str();
@@ -104,6 +117,7 @@ int main(int argc, char** argv) {
   args.settle_discard_given = settle->count() > 0;
   args.imu_time_offset_given = offset->count() > 0;
   args.gravity_given = gravity->count() > 0;
+  args.rest_min_s_given = rest_min->count() > 0;
 
   // rosbag and cpp_common log parse errors through console_bridge; the exception they throw
   // carries the same news and becomes our one line on stderr.

@@ -183,7 +183,7 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
     const std::vector<BagTopic> topics = scanner ? scanner->topics() : list_topics(bag);
     const RunTopics run_topics =
         resolve_run_topics(options.imu_topic, options.command_topic, topics, options.imu_by_type,
-                           options.temperature_topic);
+                           options.temperature_topic, options.command_topic_optional);
     stats.temperature_topic = run_topics.temperature;
     stats.topic_note = run_topics.note;
     stats.imu_topic = run_topics.imu;
@@ -198,9 +198,10 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
         !(scanner->connections_of(stats.imu_topic,
                                   ros::message_traits::MD5Sum<sensor_msgs::Imu>::value(),
                                   &imu_connections, &total) &&
-          scanner->connections_of(stats.command_topic,
-                                  ros::message_traits::MD5Sum<GimbalCommand>::value(),
-                                  &command_connections, &total) &&
+          (stats.command_topic.empty() ||
+           scanner->connections_of(stats.command_topic,
+                                   ros::message_traits::MD5Sum<GimbalCommand>::value(),
+                                   &command_connections, &total)) &&
           (stats.temperature_topic.empty() ||
            scanner->connections_of(stats.temperature_topic,
                                    ros::message_traits::MD5Sum<sensor_msgs::Temperature>::value(),
@@ -210,7 +211,8 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
     }
     std::unique_ptr<rosbag::View> view;
     if (!scanner) {
-      std::vector<std::string> query{stats.imu_topic, stats.command_topic};
+      std::vector<std::string> query{stats.imu_topic};
+      if (!stats.command_topic.empty()) query.push_back(stats.command_topic);
       if (!stats.temperature_topic.empty()) query.push_back(stats.temperature_topic);
       view.reset(new rosbag::View(bag, rosbag::TopicQuery(query)));
       total = view->size();

@@ -1,6 +1,8 @@
 // Topic resolution for bag reading (bag_topics.h).
 #include "accel_intrinsics/ros/bag_topics.h"
 
+#include <algorithm>
+
 #include <rosbag/view.h>
 
 #include <map>
@@ -133,7 +135,7 @@ std::string topic_namespace(const std::string& resolved, const std::string& requ
 
 RunTopics resolve_run_topics(const std::string& imu_requested, const std::string& command_requested,
                              const std::vector<BagTopic>& topics, bool imu_by_type,
-                             const std::string& temperature_requested) {
+                             const std::string& temperature_requested, bool command_optional) {
   RunTopics run;
   // Resolve the IMU first; its namespace disambiguates the command topic, and vice versa.
   try {
@@ -168,6 +170,15 @@ RunTopics resolve_run_topics(const std::string& imu_requested, const std::string
     }
   }
   const std::string imu_ns = namespace_of(run.imu, names::kImuTopic, imu_requested);
+  // A bag with no gimbal command topic at all is a hand tumble (DESIGN.md section 11): the IMU
+  // alone. A command topic that exists but does not resolve is still an error.
+  const bool any_command_topic =
+      std::any_of(topics.begin(), topics.end(),
+                  [](const BagTopic& t) { return t.datatype == kCommandType; });
+  if (!any_command_topic && command_optional) {
+    run.temperature = resolve_optional_topic(temperature_requested, topics, kTemperatureType, imu_ns);
+    return run;
+  }
   run.command = resolve_topic(command_requested, topics, kCommandType, imu_ns);
   run.temperature = resolve_optional_topic(temperature_requested, topics, kTemperatureType, imu_ns);
   return run;

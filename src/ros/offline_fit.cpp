@@ -16,6 +16,8 @@
 #include "accel_intrinsics/core/calibrate.h"
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/rest_detection.h"
+#include "accel_intrinsics/core/samples_file.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/io/budget_file.h"
@@ -60,6 +62,59 @@ Input read_csv_input(const OfflineFitArguments& args) {
   description.dwells = input.table.rows.size();
   description.summary =
       "position table " + args.csv + " (" + std::to_string(input.table.rows.size()) + " dwells)";
+  input.context.input = description;
+  return input;
+}
+
+// A hand tumble: rests found in a raw stream become the table (rows of unknown orientation).
+void rests_from_stream(std::vector<core::ImuSample> samples, const OfflineFitArguments& args,
+                       Input* input) {
+  // A bag gives its messages in receive order: put them in stamp order first.
+  const core::StreamCleanup cleanup = core::put_in_time_order(&samples);
+  if (cleanup.duplicates > 0)
+    input->context.warnings.push_back(std::to_string(cleanup.duplicates) +
+                                      " duplicated IMU messages (same stamp and values) used once");
+  if (cleanup.conflicting > 0)
+    input->context.warnings.push_back(
+        std::to_string(cleanup.conflicting) +
+        " IMU samples repeat an earlier stamp with other values (device clock went back?) and "
+        "were dropped");
+  core::RestDetectionOptions options;
+  options.min_rest_s = args.rest_min_s;
+  core::RestDetection found;
+  try {
+    found = core::detect_rests(samples, options);
+  } catch (const std::invalid_argument& e) {
+    throw Failure{kOfflineFitBadInput, as_one_line(e.what())};
+  }
+  input->table.rows = found.rests;
+  input->table.time_origin_s = samples.front().stamp_s;
+  input->context.rest_detection = found;
+  input->context.rest_min_s = args.rest_min_s;
+}
+
+Input read_samples_input(const OfflineFitArguments& args) {
+  std::vector<core::ImuSample> samples;
+  try {
+    samples = core::read_samples_file(args.samples);
+  } catch (const core::SamplesFileError& e) {
+    throw Failure{kOfflineFitBadInput, as_one_line(e.what())};
+  }
+  Input input;
+  const std::size_t count = samples.size();
+  const double duration = samples.back().stamp_s - samples.front().stamp_s;
+  rests_from_stream(std::move(samples), args, &input);
+  io::InputDescription description;
+  description.type = "samples";
+  description.path = args.samples;
+  description.dwells = input.table.rows.size();
+  std::ostringstream summary;
+  summary << "samples " << args.samples << " (" << count << " samples, " << std::fixed
+          << std::setprecision(1) << input.context.rest_detection->rate_hz << " Hz, " << duration
+          << " s): "
+          << input.table.rows.size() << " rests found, "
+          << input.context.rest_detection->rejected.size() << " spans rejected";
+  description.summary = summary.str();
   input.context.input = description;
   return input;
 }
@@ -129,6 +184,7 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
   options.progress_stream = &err;
   options.imu_time_offset_s = args.imu_time_offset_s;
   options.imu_by_type = !args.imu_topic_given;
+  options.command_topic_optional = true;  // IMU alone: a hand tumble
   core::ClockCheck clock_check;
   if (!args.skip_clock_check) options.clock_check = &clock_check;
   std::string bags;
@@ -147,9 +203,14 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
     throw Failure{kOfflineFitBadInput, as_one_line(e.what())};
   }
   const BagInputStats& st = run.stats;
-  if (st.command_messages == 0) {
+  const bool tumble = st.command_topic.empty();
+  if (st.command_messages == 0 && !tumble) {
     throw Failure{kOfflineFitBadInput,
                   "no gimbal commands on '" + st.command_topic + "' in " + st.path};
+  }
+  if (tumble && args.unknown_orientations) {
+    throw Failure{kOfflineFitBadInput,
+                  "--unknown-orientations: " + st.path + " has no gimbal commands (a tumble already)"};
   }
   if (st.imu_messages == 0) {
     throw Failure{kOfflineFitBadInput, "no IMU messages on '" + st.imu_topic + "' in " + st.path};
@@ -160,7 +221,7 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
                   "no temperature topic '" + args.temperature_topic + "' in " + st.path};
   }
   // One clock, before anything is fitted: dwells on a shifted clock are garbage.
-  if (options.clock_check) {
+  if (options.clock_check && !tumble) {
     const core::ClockCheckResult clock = clock_check.result();
     if (clock.offset_found) {
       std::ostringstream fix;
@@ -177,6 +238,26 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
 
   input.from_bag = true;
   input.table = std::move(run.table);
+  if (tumble) {
+    // A bag with the IMU topic alone: a hand tumble, rests found in the stream.
+    std::vector<core::ImuSample> samples;
+    if (args.analyze) {
+      samples = std::move(input.raw.samples);
+    } else {
+      BagInputOptions again = options;
+      again.raw_samples = &samples;
+      again.clock_check = nullptr;
+      try {
+        read_bags(args.bags, again);
+      } catch (const BagInputError& e) {
+        throw Failure{kOfflineFitBadInput, as_one_line(e.what())};
+      }
+    }
+    input.raw = core::RawStreams();
+    if (samples.empty())
+      throw Failure{kOfflineFitBadInput, "no IMU messages on '" + st.imu_topic + "' in " + st.path};
+    rests_from_stream(std::move(samples), args, &input);
+  }
   io::BagInputDescription bag;
   bag.imu_topic = st.imu_topic;
   bag.command_topic = st.command_topic;
@@ -192,18 +273,23 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
   bag.done_seen = st.done_seen;
   bag.time_origin_s = input.table.time_origin_s;
   io::InputDescription description;
+  if (tumble) description.type = "bag";
   description.path = st.path;
   description.dwells = input.table.rows.size();
   description.bag = bag;
   std::ostringstream summary;
   summary << (st.files > 1 ? "bags " : "bag ") << st.path << " (" << st.imu_messages << " IMU messages on " << st.imu_topic
-          << ", " << st.command_messages << " commands on " << st.command_topic << ", ";
+          << ", ";
+  if (tumble)
+    summary << "no gimbal commands: a hand tumble, " << input.table.rows.size() << " rests found, ";
+  else
+    summary << st.command_messages << " commands on " << st.command_topic << ", ";
   if (!st.temperature_topic.empty())
     summary << st.temperature_messages << " temperatures on " << st.temperature_topic << ", ";
   summary << std::fixed << std::setprecision(1) << bag.duration_s << " s)";
   description.summary = summary.str();
   input.context.input = description;
-  check_bag_run(st, input.table, &input);
+  if (!tumble) check_bag_run(st, input.table, &input);
   return input;
 }
 
@@ -212,6 +298,13 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
 // run missing a phase is fitted and marked incomplete, naming the phase.
 void check_phases(const core::PositionTable& table, core::FitModel model, int min_positions,
                   io::ResultContext* context) {
+  if (core::calibration_method(table) == "tumble") {
+    if (model == core::FitModel::Eq4)
+      throw Failure{kOfflineFitBadInput,
+                    "eq4 needs the gimbal's three phases; rests of unknown orientation are fitted "
+                    "by the tumble fit (leave --model at joint)"};
+    return;
+  }
   const std::array<int, 3> counts = core::positions_per_phase(table);
   std::ostringstream tally;
   tally << "dwells per phase: x=" << counts[0] << ", y=" << counts[1] << ", z=" << counts[2];
@@ -240,8 +333,33 @@ void check_phases(const core::PositionTable& table, core::FitModel model, int mi
 }
 
 void check_command_line(const OfflineFitArguments& args) {
-  if (args.bags.empty() == args.csv.empty()) {
-    throw Failure{kOfflineFitBadCommandLine, "give exactly one of --bag FILE or --csv FILE"};
+  const int inputs = (args.bags.empty() ? 0 : 1) + (args.csv.empty() ? 0 : 1) +
+                     (args.samples.empty() ? 0 : 1);
+  if (inputs != 1) {
+    throw Failure{kOfflineFitBadCommandLine,
+                  "give exactly one of --bag FILE, --csv FILE or --samples FILE"};
+  }
+  if (!std::isfinite(args.rest_min_s) || args.rest_min_s <= 0.0) {
+    std::ostringstream s;
+    s << "--rest-min-s " << args.rest_min_s << " must be a number of seconds > 0";
+    throw Failure{kOfflineFitBadCommandLine, s.str()};
+  }
+  if (!args.csv.empty() && args.rest_min_s_given) {
+    throw Failure{kOfflineFitBadCommandLine,
+                  "--rest-min-s applies to raw streams (--samples, or a bag without gimbal "
+                  "commands), not to a position table"};
+  }
+  if (!args.samples.empty() &&
+      (args.imu_time_offset_given || args.skip_clock_check || args.imu_topic_given ||
+       args.command_topic_given || args.temperature_topic_given || args.settle_discard_given)) {
+    throw Failure{kOfflineFitBadCommandLine,
+                  "--imu-time-offset, --skip-clock-check, --settle-discard and the topic options "
+                  "apply to --bag only"};
+  }
+  if (!args.samples.empty() && args.unknown_orientations) {
+    throw Failure{kOfflineFitBadCommandLine,
+                  "--unknown-orientations applies to a gimbal run (--bag or --csv); --samples is "
+                  "always fitted without orientations"};
   }
   if (!args.csv.empty() && (args.imu_time_offset_given || args.skip_clock_check)) {
     throw Failure{kOfflineFitBadCommandLine,
@@ -381,7 +499,17 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   }
 
   options.output_unit = args.output_unit;
-  Input input = args.bags.empty() ? read_csv_input(args) : read_bag_input(args, err);
+  Input input = !args.samples.empty() ? read_samples_input(args)
+                : args.bags.empty()      ? read_csv_input(args)
+                                         : read_bag_input(args, err);
+  if (args.unknown_orientations) {
+    // The gimbal's dwells as rests of unknown orientation: the same means, no angles.
+    input.table = core::forget_orientations(std::move(input.table));
+    core::RestDetection rests;
+    rests.rests = input.table.rows;
+    input.context.rest_detection = rests;
+    input.raw = core::RawStreams();
+  }
   check_phases(input.table, options.fit.model, options.fit.min_positions_per_phase, &input.context);
   input.context.certificate = budget_file.certificate;
   input.context.gravity_source = args.gravity_given
@@ -390,11 +518,19 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
 
   core::CalibrationReport report;
   try {
-    report = core::calibrate(input.table, input.from_bag ? &input.raw : nullptr, options);
+    const bool raw_usable = input.from_bag && !input.raw.commands.empty();
+    report = core::calibrate(input.table, raw_usable ? &input.raw : nullptr, options);
   } catch (const core::FitError& e) {
     throw Failure{kOfflineFitBadInput, "fit failed: " + as_one_line(e.what())};
   } catch (const std::invalid_argument& e) {
     throw Failure{kOfflineFitBadInput, "fit failed: " + as_one_line(e.what())};
+  }
+  if (!report.analysis_not_run.empty())
+    err << kOfflineFitProgram << ": note: --analyze: " << report.analysis_not_run << std::endl;
+  if (report.coverage && !report.coverage->complete()) {
+    input.context.complete = false;
+    for (const std::string& m : report.coverage->missing)
+      input.context.warnings.push_back(m + ": add such a rest (the fit is weaker there)");
   }
   if (!report.analysis_error.empty()) {
     throw Failure{kOfflineFitBadInput,
@@ -403,7 +539,7 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   const std::string json = io::result_json_text(report, input.context);
 
   // Exports of the certificate, prepared before any file is written.
-  std::string source = args.csv;
+  std::string source = args.csv + args.samples;
   for (const std::string& b : args.bags) source += (source.empty() ? "" : ", ") + b;
   io::CalibrationToExport calibration = io::calibration_to_export(
       report, std::string(kOfflineFitProgram) + " result of " + source +

@@ -247,7 +247,17 @@ TEST(Orientations, CsvRoundTripWithDirections) {
   const std::string header = std::string(kPositionTableHeader) + kDirectionColumns + "\n";
   EXPECT_NE(error_of(header + "-,0,0,0,1,10,1,2,3,0.1,0.1,0.1,0.5,0.5,0\n").find("unit vector"),
             std::string::npos);
-  EXPECT_NE(error_of(header + "-,0,0,0,1,10,1,2,3,0.1,0.1,0.1,,,\n").find("needs the direction"),
+  // Phase '-' without a direction: a rest of unknown orientation (a hand tumble, DESIGN.md
+  // section 11), read, not refused; only the tumble fit takes it.
+  EXPECT_EQ(error_of(header + "-,0,,0,1,10,1,2,3,0.1,0.1,0.1,,,\n"), "(none)");
+  {
+    std::istringstream in(header + "-,0,,0,1,10,1,2,3,0.1,0.1,0.1,,,\n");
+    const PositionTable unknown = read_position_table(in);
+    ASSERT_EQ(unknown.rows.size(), 1u);
+    EXPECT_TRUE(unknown.rows[0].orientation_unknown);
+    EXPECT_FALSE(unknown.rows[0].has_direction);
+  }
+  EXPECT_NE(error_of(header + "q,0,0,0,1,10,1,2,3,0.1,0.1,0.1,,,\n").find("field phase"),
             std::string::npos);
   // A direction row needs no angle.
   EXPECT_EQ(error_of(header + "-,0,,0,1,10,1,2,3,0.1,0.1,0.1,0,0,1\n"), "(none)");

@@ -14,6 +14,7 @@
 #include "accel_intrinsics/core/protocol.h"
 #include "accel_intrinsics/core/quality.h"
 #include "accel_intrinsics/core/raw_stream_analysis.h"
+#include "accel_intrinsics/core/tumble.h"
 #include "accel_intrinsics/core/uncertainty_budget.h"
 
 namespace accel_intrinsics {
@@ -52,7 +53,12 @@ struct RunTemperature {
 // Of a table; nullopt when no dwell has a temperature.
 std::optional<RunTemperature> run_temperature(const PositionTable& table);
 
+// How the orientations were known (the result's "method", DESIGN.md section 11): "gimbal"
+// (commanded angles), "positions" (rows with f_x,f_y,f_z), "tumble" (unknown: rests only).
+std::string calibration_method(const PositionTable& table);
+
 struct CalibrationReport {
+  std::string method = "gimbal";
   FitResult base_fit;     // the fit with options.fit.model
   FitResult certificate;  // what result files and messages hold (base_fit or the refit)
   bool certificate_is_refit = false;
@@ -70,6 +76,12 @@ struct CalibrationReport {
   std::optional<RunTemperature> temperature;
   // When options.budget: the certificate's uncertainty budget (type A plus the type-B sources).
   std::optional<UncertaintyBudget> budget;
+  // A tumble: which axis directions the rests reached, and the pose that would help most next.
+  std::optional<TumbleCoverage> coverage;
+  std::optional<PoseSuggestion> next_pose;
+  // Why the discrepancy analysis did not run although asked (a tumble: its effects need known
+  // orientations); empty otherwise.
+  std::string analysis_not_run;
 };
 
 // Fit -> analysis -> timing lag -> quality gate. Throws FitError when the fit fails (the message says what is

@@ -21,7 +21,9 @@
 namespace accel_intrinsics {
 namespace core {
 
-enum class FitModel { Joint, Eq4 };
+// Tumble: rests of unknown orientation (hand tumble, DESIGN.md section 11), |P (mean - O)| = g;
+// chosen by the input (tumble.h), never by --model.
+enum class FitModel { Joint, Eq4, Tumble };
 const char* model_name(FitModel model);
 // "joint" or "eq4"; throws std::invalid_argument otherwise.
 FitModel parse_model(const std::string& name);
@@ -93,6 +95,11 @@ FitResult fit(const PositionTable& table, const FitOptions& options = {});
 // unit weights the fit takes the scale of its covariance from the residuals (s^2 = chi2 / dof),
 // so an exact fit reports uncertainties at the round-off level.
 std::vector<Eigen::Vector3d> dwell_standard_errors(const PositionTable& table);
+
+// Fills what follows from r.S and the (already chi2-scaled) 12x12 covariance of (S row-major, O):
+// covariance, O_std, intrinsics, cross_sensitivity and its std. Throws FitError when S is
+// singular. Every fit ends with it (the tumble fit of tumble.h too).
+void finish_result(FitResult& r, const Eigen::Matrix<double, 12, 12>& covariance);
 
 }  // namespace core
 }  // namespace accel_intrinsics

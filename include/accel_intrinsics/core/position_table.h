@@ -52,6 +52,10 @@ struct DwellRecord {
   // then labels without meaning; only the joint fit takes such rows.
   bool has_direction = false;
   Eigen::Vector3d direction = Eigen::Vector3d::Zero();
+  // A rest of unknown orientation (DESIGN.md section 11: a hand tumble, or a gimbal run fitted
+  // with --unknown-orientations): phase "-" without f_x,f_y,f_z. Only the tumble fit takes such
+  // rows; phase, step and angle are labels without meaning.
+  bool orientation_unknown = false;
   // Mean temperature of the dwell in degrees C (imu/temperature, column temperature_c); NaN when
   // none was recorded.
   double temperature_c = std::numeric_limits<double>::quiet_NaN();
@@ -128,6 +132,11 @@ double effective_time_origin(const PositionTable& table);
 std::array<int, 3> positions_per_phase(const PositionTable& table);
 // Rows that give their orientation as a direction (f_x,f_y,f_z).
 std::size_t rows_with_direction(const PositionTable& table);
+// Rows of unknown orientation (rests of a hand tumble).
+std::size_t rows_with_unknown_orientation(const PositionTable& table);
+// The same dwells with their orientations forgotten (--unknown-orientations): every row becomes a
+// rest of unknown orientation, so only the tumble fit (|P (mean - O)| = g) can take them.
+PositionTable forget_orientations(PositionTable table);
 
 }  // namespace core
 }  // namespace accel_intrinsics

@@ -20,6 +20,10 @@
 //   with a budget (offline_fit --budget, the node's budget_file): uncertainty_budget {sources,
 //     combined_std, expanded {k, ...}, samples, seed, method} (DESIGN.md section 9), and
 //     certificate {lab, device, ...} (the budget file's certificate block) when it has fields
+//   always: method (gimbal|positions|tumble); a tumble: frame, coverage {cone_deg, complete,
+//     missing, closest_deg}, next_pose {up, words, target, ...}, rests [{t_start, t_end, n, mean,
+//     std}], rejected_spans [{t_start, t_end, reason}], rest_detection {quiet_std, rate_hz, ...}
+//     (found in a stream), analysis_not_run (asked, but a tumble has no analysis yet)
 //   from the context: local_gravity_source, stamp (node), samples {used, dropped_*} (node), input, complete, warnings
 //     (offline_fit)
 //
@@ -38,6 +42,7 @@
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/intrinsics.h"
+#include "accel_intrinsics/core/rest_detection.h"
 #include "accel_intrinsics/core/uncertainty_budget.h"
 
 namespace accel_intrinsics {
@@ -62,6 +67,7 @@ struct BagInputDescription {
 
 // Where the dwells came from: a CSV position table or a bag.
 struct InputDescription {
+  std::string type;  // "csv" (default when empty), "samples"; a bag has `bag`
   std::string path;
   std::size_t dwells = 0;                  // rows of the position table
   std::optional<BagInputDescription> bag;  // absent: a CSV position table
@@ -80,6 +86,10 @@ struct ResultContext {
   // ("local_gravity_source"); empty: omitted.
   std::vector<std::pair<std::string, std::string>> certificate;
   std::string gravity_source;
+  // A hand tumble (DESIGN.md section 11): the rests fitted and the spans rejected ("rests",
+  // "rejected_spans"), and, when found in a stream, the detector's levels ("rest_detection").
+  std::optional<core::RestDetection> rest_detection;
+  double rest_min_s = 0.0;
 };
 
 std::string result_json_text(const core::CalibrationReport& report, const ResultContext& context);

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <iosfwd>
+#include <string>
 
 #include "accel_intrinsics/core/calibrate.h"
 #include "accel_intrinsics/core/fit.h"
@@ -13,7 +14,8 @@ namespace accel_intrinsics {
 namespace io {
 
 // The parameter table of one fit (uses context.input and warnings for the header lines).
-void write_fit_report(std::ostream& out, const core::FitResult& fit, const ResultContext& context);
+void write_fit_report(std::ostream& out, const core::FitResult& fit, const ResultContext& context,
+                      const std::string& output_unit = "m/s^2");
 // write_fit_report of the certificate, then (after a blank line) the analysis report and the
 // timing-lag line.
 void write_text_report(std::ostream& out, const core::CalibrationReport& report,

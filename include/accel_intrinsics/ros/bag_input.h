@@ -59,6 +59,9 @@ struct BagInputOptions {
   bool imu_by_type = false;
   // Flush the assembler after the last message (false: more bags of the same run follow).
   bool flush_at_end = true;
+  // A bag without any gimbal command topic is read (IMU, and temperature, only; command_topic in
+  // the statistics empty) instead of refused: a hand tumble.
+  bool command_topic_optional = false;
 };
 
 struct BagInputStats {

@@ -50,9 +50,11 @@ struct RunTopics {
 // `imu_by_type` (the IMU topic was not named by the user), a bag without the default IMU topic
 // but with exactly one sensor_msgs/Imu topic uses that one and says so in `note`.
 // The temperature topic `temperature_requested` is optional ("" skips it) and preferred in the
-// IMU's namespace.
+// IMU's namespace. With `command_optional`, a bag without any GimbalCommand topic (a hand tumble)
+// resolves with `command` empty.
 RunTopics resolve_run_topics(const std::string& imu_requested, const std::string& command_requested,
                              const std::vector<BagTopic>& topics, bool imu_by_type = false,
-                             const std::string& temperature_requested = "");
+                             const std::string& temperature_requested = "",
+                             bool command_optional = false);
 
 }  // namespace accel_intrinsics

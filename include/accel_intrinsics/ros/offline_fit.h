@@ -2,7 +2,8 @@
 // playback (DESIGN.md section 2, "Offline tool"). src/nodes/offline_fit.cpp is its command line;
 // tests call run_offline_fit() in process.
 //
-//   offline_fit (--bag FILE|DIR [--bag ...] | --csv FILE) [--imu-topic T] [--command-topic T]
+//   offline_fit (--bag FILE|DIR [--bag ...] | --csv FILE | --samples FILE) [--unknown-orientations]
+//               [--rest-min-s SECONDS] [--imu-topic T] [--command-topic T]
 //               [--gravity G] [--model joint|eq4] [--analyze] [--json OUT] [--csv-out FILE]
 //               [--settle-discard SECONDS] [--imu-time-offset SECONDS] [--skip-clock-check]
 //               [--output-unit UNIT] [--export NAME=FILE]... [--budget FILE]
@@ -11,6 +12,12 @@
 // The joint model takes any set of known orientations (position table rows with f_x,f_y,f_z)
 // that determines S and O, and a gimbal run missing a phase when the others determine S: the
 // result is then marked incomplete, naming the phase. eq4 needs the three phases.
+//
+// A hand tumble (DESIGN.md section 11): --samples FILE (t,x,y,z), or a bag with the IMU topic and
+// no gimbal commands: rests are found in the stream (core/rest_detection.h) and fitted by
+// |P (mean - O)| = g (core/tumble.h); the result says "method": "tumble", its "frame", every rest
+// and rejected span, the coverage (an incomplete one names the missing direction) and the next
+// pose to try. --unknown-orientations fits a gimbal run's dwells the same way.
 //
 // A run split over several bags (rosbag record --split) is read as one: --bag repeated, or a
 // directory of bags. Before fitting a bag, the clock check (core/clock_check.h) makes sure the
@@ -62,8 +69,16 @@ enum OfflineFitStatus : int {
 
 // The command line, parsed (src/nodes/offline_fit.cpp); defaults as the tool's.
 struct OfflineFitArguments {
-  std::vector<std::string> bags;  // bags and directories of bags; exactly one of bags and csv
+  // Exactly one input: bags (and directories of bags), a CSV position table, or raw samples.
+  std::vector<std::string> bags;
   std::string csv;
+  // Raw samples t,x,y,z (core/samples_file.h): a hand tumble, rests found in the stream.
+  std::string samples;
+  // Fit the dwells of a gimbal bag or table as rests of unknown orientation (DESIGN.md section 11):
+  // with compare_results, tells a gimbal angle error from a device property.
+  bool unknown_orientations = false;
+  double rest_min_s = 2.0;  // shortest rest kept (samples, or a bag without gimbal commands)
+  bool rest_min_s_given = false;
   std::string imu_topic = names::kImuTopic;
   std::string command_topic = names::kGimbalCommandTopic;
   // Optional DUT temperature (sensor_msgs/Temperature): used when the bag has it.

@@ -1,0 +1,85 @@
+// Intrinsics from rests of unknown orientation: a hand tumble (DESIGN.md section 11).
+//
+// At rest |f| = g, so each rest mean m satisfies |P (m - O)| = g with P = S^-1: the rests lie on
+// an ellipsoid whose centre is O and whose shape is the Gram matrix G = S S^T. The rotation of S
+// is not observable, so S is reported in the sensor's own frame: u along x, v in the x-y plane,
+// i.e. S lower-triangular (6 parameters) plus O (3). |u|, |v|, |w| and the angles between them,
+// the intrinsic parameters, are exactly what G holds.
+//
+// Fit: an algebraic ellipsoid fit gives the start, then Gauss-Newton on the weighted residuals
+//   r_i = (|P (m_i - O)| - g) / sigma_i,  sigma_i^2 = sum_s (P^T a_hat_i)_s^2 se_is^2
+// (se the standard error of the rest mean, a_hat the unit specific force: first-order
+// propagation of the mean's noise into |a|). Covariance (J^T W J)^-1, scaled by the reduced
+// chi-square when above 1, as every fit here (fit.h).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/position_table.h"
+
+namespace accel_intrinsics {
+namespace core {
+
+// The frame S is reported in (the result's "frame").
+extern const char* const kTumbleFrame;
+
+struct TumbleFitOptions {
+  double local_gravity = kStandardGravity;
+  std::size_t min_rests = 10;  // fewer: FitError naming how many more are needed
+};
+
+// Fits the rows of `table` (all orientation_unknown). The FitResult has model Tumble, S
+// lower-triangular, residuals per row as 3-vectors (mean minus its projection on the fitted
+// ellipsoid, S a_hat g + O), chi2 over the scalar residuals, dof = rests - 9. Throws FitError for
+// too few rests or rests that do not determine the ellipsoid, naming what to add.
+FitResult fit_tumble(const PositionTable& table, const TumbleFitOptions& options = {});
+
+// The unit specific force ("up") of each row in the sensor frame under a tumble fit.
+std::vector<Eigen::Vector3d> rest_up_directions(const FitResult& fit, const PositionTable& table);
+
+// Which of the six axis directions (u, v, w each up and down) some rest reached within the cone.
+struct TumbleCoverage {
+  double cone_deg = 45.0;
+  // [axis][0 = up, 1 = down]: the smallest angle (deg) between a rest's up direction and +axis
+  // (up) or -axis (down).
+  std::array<std::array<double, 2>, 3> closest_deg{};
+  std::vector<std::string> missing;  // e.g. "no rest with w pointing down within 45 deg"
+  bool complete() const { return missing.empty(); }
+};
+TumbleCoverage tumble_coverage(const FitResult& fit, const PositionTable& table,
+                               double cone_deg = 45.0);
+
+// Relative standard uncertainty of each intrinsic parameter, comparable across kinds:
+// responsivity std / responsivity, angle std in rad, offset std / (responsivity g) (a fraction of
+// 1 g). Names as in the result: responsivity_u.., angle_uv.., offset_u..
+struct RelativeUncertainty {
+  std::string name;
+  double value = 0.0;
+};
+std::vector<RelativeUncertainty> relative_uncertainties(const FitResult& fit);
+
+// The pose to try next (DESIGN.md section 11): the up direction (unit, sensor frame) after whose
+// rest the largest relative uncertainty of the nine intrinsics would be smallest, from the Fisher
+// information of the rests so far plus one more rest there (its noise the median of the rests').
+struct PoseSuggestion {
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  std::string target;                // the parameter with the largest relative uncertainty
+  double relative_std_now = 0.0;     // of the target
+  double relative_std_after = 0.0;   // of the target, predicted with one more rest at `up`
+  double largest_after = 0.0;        // the largest relative uncertainty then, predicted
+  std::string words;                 // for the person holding the device (describe_pose)
+};
+PoseSuggestion suggest_next_pose(const FitResult& fit, const PositionTable& table,
+                                 int candidates = 600);
+
+// "x axis straight up", "z axis 45 deg up, y axis 45 deg down", ...: which way the device's
+// axes point when the specific force in its frame is along `up`.
+std::string describe_pose(const Eigen::Vector3d& up);
+
+}  // namespace core
+}  // namespace accel_intrinsics
