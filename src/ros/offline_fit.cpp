@@ -451,7 +451,8 @@ bool archive_result(const OfflineFitArguments& args, const std::string& json,
   std::vector<std::string> command = {"--archive", args.archive, "add", result_path,
                                       "--positions", table_path, "--added-by", "offline_fit",
                                       "--input"};
-  for (const std::string& input : args.bags.empty() ? std::vector<std::string>{args.csv} : args.bags)
+  const std::string single_input = args.csv.empty() ? args.samples : args.csv;
+  for (const std::string& input : args.bags.empty() ? std::vector<std::string>{single_input} : args.bags)
     command.push_back(input);
   if (!args.device.empty()) command.insert(command.end(), {"--device", args.device});
   if (!args.rig.empty()) command.insert(command.end(), {"--rig", args.rig});
