@@ -90,3 +90,23 @@ TEST(OfflineFitArchive, UnreachableArchiveIsAWarning) {
   EXPECT_EQ(err.str().find("pw-not-shown"), std::string::npos);
   EXPECT_TRUE(std::ifstream(args.json_out).good());
 }
+
+TEST(OfflineFitArchive, HandTumbleIsArchivedAsTumble) {
+  // imu_tk's Xsens session (--samples, raw counts) and no budget file: the serial comes from
+  // --device, the expanded uncertainties are 2 x the standard ones.
+  ArchiveDir dir;
+  ai::OfflineFitArguments args;
+  args.samples = kSource + "/test/data/imu_tk_xsens/xsens_acc.mat";
+  args.output_unit = "counts";
+  args.json_out = dir.file("tumble.json");
+  args.archive = dir.url();
+  args.device = "XSENS-1";
+  std::ostringstream out, err;
+  ASSERT_EQ(ai::run_offline_fit(args, out, err), ai::kOfflineFitOk) << err.str();
+  const nlohmann::json result = read_json(args.json_out);
+  const nlohmann::json doc = history(dir, "XSENS-1");
+  ASSERT_EQ(doc["records"].size(), 1u);
+  EXPECT_EQ(doc["records"][0]["method"], "tumble");
+  EXPECT_DOUBLE_EQ(doc["records"][0]["expanded"]["offset_u"].get<double>(),
+                   2.0 * result["offset_std"]["u"].get<double>());
+}
