@@ -187,11 +187,11 @@ def open_archive(url):
         upgrade(engine)
     except sa.exc.SQLAlchemyError as error:
         engine.dispose()
-        raise ArchiveError("archive %s: %s" % (display_url(url), scrub(_first_line(error), url)))
+        raise ArchiveError("archive %s: %s" % (display_url(url), scrub(first_line(error), url)))
     return engine
 
 
-def _first_line(error):
+def first_line(error):
     text = str(getattr(error, "orig", None) or error)
     return text.strip().splitlines()[0] if text.strip() else type(error).__name__
 
