@@ -16,6 +16,7 @@ import sys
 
 ISSUE12 = "issue 12"
 ISSUE15 = "issue 15"
+ISSUE22 = "issue 22"
 SET_HERE = "set here"
 
 
@@ -85,6 +86,8 @@ def main(argv):
         ("estimator scatter / Cramér–Rao bound (joint, eq4), furthest from 1", lambda: max((v for k, (v, _) in figures.items() if "scatter_over_crb_" in k), key=lambda v: abs(v - 1.0)) if any("scatter_over_crb_" in k for k in figures) else f("scatter_over_crb_responsivity_u"), "within", (0.95, 1.05), ratio, SET_HERE),
         ("reported standard uncertainty / scatter, furthest from 1", lambda: max((v for k, (v, _) in figures.items() if k.startswith("reported_std_over_scatter_")), key=lambda v: abs(v - 1.0)) if any(k.startswith("reported_std_over_scatter_") for k in figures) else f("reported_std_over_scatter_responsivity_u"), "within", (0.95, 1.05), ratio, SET_HERE),
         ("detection threshold / theory, quadratic non-linearity (family-wise)", lambda: f("detection_quadratic_nonlinearity_u_ratio_to_theory_familywise"), "within", (0.8, 1.25), ratio, SET_HERE),
+        ("hand tumble: rest detection + fit, simulated 100 Hz session", lambda: f("BM_TumbleSimulated_samples_per_s") / 1e6, ">=", 10.0, lambda v: "%.1f M samples/s" % v, ISSUE22),
+        ("hand tumble: rest detection + fit, imu_tk's Xsens session (imu_tk: 0.50 s)", lambda: f("BM_TumbleImuTkXsens_samples_per_s") / 1e6, ">=", 10.0, lambda v: "%.1f M samples/s" % v, ISSUE22),
         ("detection threshold / theory, angle offset (family-wise)", lambda: f("detection_angle_offset_x_ratio_to_theory_familywise"), "within", (0.8, 1.25), ratio, SET_HERE),
     ]
 

@@ -3,7 +3,9 @@
 # simulated test stand (20x faster than real time) while recording a bag, let scripts/supervise
 # run the protocol and collect the result through the calibration/get_intrinsics service
 # (printed beside the simulated truth), then recalibrate the recorded bag offline with
-# offline_fit --analyze. Everything lands in $ACCEL_WS/demo/.
+# offline_fit --analyze; then a hand tumble without a gimbal (imu_tk's public Xsens session) and the
+# demo run's dwells fitted without the gimbal's angles, compared with the gimbal fit. Everything
+# lands in $ACCEL_WS/demo/.
 #   STEPS=24 TIME_SCALE=20 bash tools/demo.sh
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 bash "$REPO_DIR/tools/install_deps.sh"
@@ -51,6 +53,16 @@ echo
 echo "[demo] offline recalibration of the recorded bag (offline_fit --bag ... --analyze)"
 rosrun accel_intrinsics offline_fit --bag "$demo_dir/run.bag" --analyze \
   --json "$demo_dir/offline.json" --csv-out "$demo_dir/offline_position_table.csv"
+echo
+echo "[demo] no gimbal: a hand tumble. imu_tk's public Xsens session (raw counts, turned by hand)"
+rosrun accel_intrinsics offline_fit --samples "$REPO_DIR/test/data/imu_tk_xsens/xsens_acc.mat" \
+  --output-unit counts --json "$demo_dir/tumble_xsens.json"
+echo
+echo "[demo] the demo run's dwells without the gimbal's angles, compared with the gimbal fit"
+rosrun accel_intrinsics offline_fit --bag "$demo_dir/run.bag" --unknown-orientations \
+  --json "$demo_dir/offline_unknown_orientations.json" > "$demo_dir/offline_unknown_orientations.txt"
+rosrun accel_intrinsics compare_results "$demo_dir/offline.json" \
+  "$demo_dir/offline_unknown_orientations.json" || true
 echo
 echo "[demo] done. Files in $demo_dir:"
 ls -1 "$demo_dir" "$demo_dir/stand" 2>/dev/null | sed 's/^/  /'

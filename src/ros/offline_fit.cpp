@@ -18,6 +18,7 @@
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/rest_detection.h"
 #include "accel_intrinsics/core/samples_file.h"
+#include "accel_intrinsics/core/tumble.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/io/budget_file.h"
@@ -48,6 +49,7 @@ struct Input {
   io::ResultContext context;  // input description, complete, warnings
   bool from_bag = false;
   core::RawStreams raw;  // bag with --analyze: for the timing-lag estimate
+  std::string read_as;   // how the input was taken, when not obvious (prefixes a fit failure)
 };
 
 Input read_csv_input(const OfflineFitArguments& args) {
@@ -86,6 +88,15 @@ void rests_from_stream(std::vector<core::ImuSample> samples, const OfflineFitArg
     found = core::detect_rests(samples, options);
   } catch (const std::invalid_argument& e) {
     throw Failure{kOfflineFitBadInput, as_one_line(e.what())};
+  }
+  if (found.rests.size() < core::TumbleFitOptions().min_rests) {
+    std::ostringstream m;
+    m << found.rests.size() << " rests found in the stream (" << found.rejected.size()
+      << " still spans rejected), at least " << core::TumbleFitOptions().min_rests
+      << " needed: hold the device still for " << args.rest_min_s
+      << " s or more in more orientations, every axis up and down";
+    input->context.rest_detection = found;
+    throw Failure{kOfflineFitBadInput, input->read_as + m.str()};
   }
   input->table.rows = found.rests;
   input->table.time_origin_s = samples.front().stamp_s;
@@ -256,6 +267,7 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
     input.raw = core::RawStreams();
     if (samples.empty())
       throw Failure{kOfflineFitBadInput, "no IMU messages on '" + st.imu_topic + "' in " + st.path};
+    input.read_as = "no gimbal commands in " + st.path + ", read as a hand tumble: ";
     rests_from_stream(std::move(samples), args, &input);
   }
   io::BagInputDescription bag;
@@ -522,7 +534,7 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
     const bool raw_usable = input.from_bag && !input.raw.commands.empty();
     report = core::calibrate(input.table, raw_usable ? &input.raw : nullptr, options);
   } catch (const core::FitError& e) {
-    throw Failure{kOfflineFitBadInput, "fit failed: " + as_one_line(e.what())};
+    throw Failure{kOfflineFitBadInput, input.read_as + "fit failed: " + as_one_line(e.what())};
   } catch (const std::invalid_argument& e) {
     throw Failure{kOfflineFitBadInput, "fit failed: " + as_one_line(e.what())};
   }

@@ -121,53 +121,14 @@ ToolRun run_binary(const std::vector<std::string>& args, const TempDir& dir) {
   return r;
 }
 
-// What the command line gives run_offline_fit for `args` (well-formed options only: values that
-// do not parse are the binary's business, see run_binary).
+// What the command line gives run_offline_fit for `args`: the tool's own parser (well-formed
+// options only: values that do not parse are the binary's business, see run_binary).
 ai::OfflineFitArguments parse_arguments(const std::vector<std::string>& args) {
   ai::OfflineFitArguments a;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string& flag = args[i];
-    if (flag == "--analyze") {
-      a.analyze = true;
-      continue;
-    }
-    if (flag == "--skip-clock-check") {
-      a.skip_clock_check = true;
-      continue;
-    }
-    if (i + 1 >= args.size()) {
-      ADD_FAILURE() << flag << " without a value";
-      break;
-    }
-    const std::string& value = args[++i];
-    if (flag == "--bag") {
-      a.bags.push_back(value);
-    } else if (flag == "--imu-time-offset") {
-      a.imu_time_offset_s = std::stod(value);
-      a.imu_time_offset_given = true;
-    } else if (flag == "--csv") {
-      a.csv = value;
-    } else if (flag == "--imu-topic") {
-      a.imu_topic = value;
-      a.imu_topic_given = true;
-    } else if (flag == "--command-topic") {
-      a.command_topic = value;
-      a.command_topic_given = true;
-    } else if (flag == "--gravity") {
-      a.gravity = std::stod(value);
-    } else if (flag == "--model") {
-      a.model = value;
-    } else if (flag == "--json") {
-      a.json_out = value;
-    } else if (flag == "--csv-out") {
-      a.csv_out = value;
-    } else if (flag == "--settle-discard") {
-      a.settle_discard_s = std::stod(value);
-      a.settle_discard_given = true;
-    } else {
-      ADD_FAILURE() << "unknown option " << flag;
-    }
-  }
+  int status = 0;
+  std::ostringstream out, err;
+  if (!ai::parse_offline_fit_arguments(args, &a, &status, out, err))
+    ADD_FAILURE() << "the command line did not parse (" << status << "): " << err.str();
   return a;
 }
 
@@ -786,16 +747,21 @@ TEST(OfflineFitBadInput, MissingTopicIsNamedAndBagTopicsListed) {
   EXPECT_NE(r.err.find("/gimbal/command (accel_intrinsics/GimbalCommand"), std::string::npos)
       << r.err;
 
-  // A bag with IMU data only.
+  // A bag with IMU data only is a hand tumble (DESIGN.md section 11); one second of the device
+  // lying still has one rest, far too few.
   {
     BagWriter writer(dir.file("imu_only.bag"));
-    for (int i = 0; i < 10; ++i) writer.imu(100 + 0.1 * i, Eigen::Vector3d(0, 0, kG));
+    for (int i = 0; i < 100; ++i) writer.imu(100 + 0.01 * i, Eigen::Vector3d(0, 0, kG));
     writer.bag.close();
   }
-  r = run_tool({"--bag", dir.file("imu_only.bag")}, dir);
+  r = run_tool({"--bag", dir.file("imu_only.bag"), "--rest-min-s", "0.2"}, dir);
   EXPECT_EQ(r.status, 1);
-  expect_single_line_error(r, "topic 'gimbal/command' not found");
-  EXPECT_NE(r.err.find("/imu/data_raw"), std::string::npos) << r.err;
+  expect_single_line_error(r, "no gimbal commands");
+  EXPECT_NE(r.err.find("1 rests found in the stream"), std::string::npos) << r.err;
+  // A command topic named but absent from a bag that has none: still a tumble, named.
+  r = run_tool({"--bag", dir.file("imu_only.bag"), "--command-topic", "stand/gimbal/command"}, dir);
+  EXPECT_EQ(r.status, 1);
+  expect_single_line_error(r, "no gimbal commands");
 
   // Right name, wrong type.
   r = run_tool({"--bag", dir.file("run.bag"), "--imu-topic", "gimbal/command"}, dir);
@@ -898,7 +864,7 @@ TEST(OfflineFitBadInput, CommandLine) {
   make_hand_bag(dir.file("run.bag"));
   ToolRun r = run_tool({}, dir);
   EXPECT_EQ(r.status, 2);
-  expect_single_line_error(r, "exactly one of --bag FILE or --csv FILE");
+  expect_single_line_error(r, "exactly one of --bag FILE, --csv FILE or --samples FILE");
   r = run_tool({"--bag", dir.file("run.bag"), "--csv", dir.file("x.csv")}, dir);
   EXPECT_EQ(r.status, 2);
   expect_single_line_error(r, "exactly one of");

@@ -213,7 +213,7 @@ TEST(TumbleOffline, BadInputsGiveOneLine) {
   args.samples = dir.file("still.txt");
   r = run(args);
   EXPECT_EQ(r.status, kOfflineFitBadInput);
-  EXPECT_NE(r.err.find("1 rests, at least 10 needed"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("1 rests found in the stream (0 still spans rejected), at least 10 needed"), std::string::npos) << r.err;
   EXPECT_TRUE(dir.entries().count("out.json") == 0);
 
   OfflineFitArguments both;

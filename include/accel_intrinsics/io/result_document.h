@@ -67,11 +67,11 @@ struct BagInputDescription {
 
 // Where the dwells came from: a CSV position table or a bag.
 struct InputDescription {
-  std::string type;  // "csv" (default when empty), "samples"; a bag has `bag`
   std::string path;
   std::size_t dwells = 0;                  // rows of the position table
   std::optional<BagInputDescription> bag;  // absent: a CSV position table
   std::string summary;                     // one line for the text report
+  std::string type;  // "csv" (default when empty), "samples"; a bag has `bag`
 };
 
 // What the document says beyond the pipeline's report.

@@ -109,6 +109,14 @@ struct OfflineFitArguments {
   bool gravity_given = false;
 };
 
+// Parses the command line (arguments without the program name) into `args`. Returns false when
+// the tool should exit at once with *exit_status: --help (0, the help on `out`) or a malformed
+// command line (kOfflineFitBadCommandLine, one line on `err`). Values are checked by
+// run_offline_fit.
+bool parse_offline_fit_arguments(const std::vector<std::string>& arguments,
+                                 OfflineFitArguments* args, int* exit_status, std::ostream& out,
+                                 std::ostream& err);
+
 // Runs the tool: the text report on `out` (on `err` when json_out is "-"), progress, warnings
 // and errors on `err`. Returns the exit status; every failure prints exactly one line
 // "offline_fit: error: ..." on `err` and writes no output file. Output files (json_out, csv_out)
