@@ -110,3 +110,22 @@ TEST(OfflineFitArchive, HandTumbleIsArchivedAsTumble) {
   EXPECT_DOUBLE_EQ(doc["records"][0]["expanded"]["offset_u"].get<double>(),
                    2.0 * result["offset_std"]["u"].get<double>());
 }
+
+TEST(OfflineFitArchive, CommandLine) {
+  ai::OfflineFitArguments args;
+  int status = -1;
+  std::ostringstream out, err;
+  ASSERT_TRUE(ai::parse_offline_fit_arguments(
+      {"--csv", "t.csv", "--archive", "sqlite:///a.db", "--device", "SN-1", "--rig", "A"}, &args,
+      &status, out, err))
+      << err.str();
+  EXPECT_EQ(args.archive, "sqlite:///a.db");
+  EXPECT_EQ(args.device, "SN-1");
+  EXPECT_EQ(args.rig, "A");
+  // --device and --rig name an archive record: refused without --archive
+  ai::OfflineFitArguments no_archive;
+  EXPECT_FALSE(ai::parse_offline_fit_arguments({"--csv", "t.csv", "--rig", "A"}, &no_archive,
+                                               &status, out, err));
+  EXPECT_EQ(status, ai::kOfflineFitBadCommandLine);
+  EXPECT_NE(err.str().find("--rig requires --archive"), std::string::npos) << err.str();
+}
