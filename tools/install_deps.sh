@@ -12,6 +12,7 @@ PACKAGES=(
   python3-rospy python3-rosgraph python3-matplotlib python3-numpy python3-yaml catkin-lint graphviz
   libnodeletlib-dev libnodeletlib-tools pluginlib-dev
   poppler-utils
+  python3-sqlalchemy python3-alembic python3-psycopg2 python3-pytest postgresql
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

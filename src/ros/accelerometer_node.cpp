@@ -34,6 +34,18 @@ AccelerometerOptions AccelerometerOptions::load(const ros::NodeHandle& pnh) {
   read_matrix3(pnh, "device/S", &s.truth.S);
   read_vector3(pnh, "device/O", &s.truth.O);
   read_effects(pnh, "device/effects", &s.truth.effects);
+  // A device that ages between runs (the lab archive's history, DESIGN.md section 13): S and O
+  // after device/aging/age_days of a linear drift.
+  double age_days = 0.0;
+  Eigen::Vector3d responsivity_per_day = Eigen::Vector3d::Zero();
+  Eigen::Vector3d offset_per_day = Eigen::Vector3d::Zero();
+  read_param(pnh, "device/aging/age_days", &age_days);
+  require(std::isfinite(age_days) && age_days >= 0.0, pnh, "device/aging/age_days",
+          "must be finite and >= 0 days");
+  read_vector3(pnh, "device/aging/responsivity_per_day", &responsivity_per_day);
+  read_vector3(pnh, "device/aging/offset_per_day", &offset_per_day);
+  for (int i = 0; i < 3; ++i) s.truth.S.row(i) *= 1.0 + responsivity_per_day[i] * age_days;
+  s.truth.O += offset_per_day * age_days;
   read_param(pnh, "rate_hz", &s.rate_hz);
   read_param(pnh, "noise_density", &s.noise_density);
   read_param(pnh, "quantization", &s.quantization);

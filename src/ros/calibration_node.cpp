@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <thread>
 
 #include "accel_intrinsics/AbortRun.h"
 #include "accel_intrinsics/ResumeAt.h"
@@ -18,6 +19,7 @@
 #include "accel_intrinsics/ros/conversions.h"
 #include "accel_intrinsics/ros/names.h"
 #include "accel_intrinsics/ros/params.h"
+#include "accel_intrinsics/ros/scripts.h"
 
 namespace accel_intrinsics {
 
@@ -332,7 +334,23 @@ void CalibrationNode::publish_certificate(const core::CalibrationReport& report,
     io::write_result_yaml(files_.result_path(), report, context);
     ROS_INFO("calibration: wrote %s", files_.result_path().c_str());
     write_exports(report);
+    if (!options_.archive.empty()) archive_result();
   }
+}
+
+void CalibrationNode::archive_result() const {
+  std::vector<std::string> args = {"--archive",   options_.archive,    "add",
+                                   files_.result_path(), "--positions", files_.table_path(),
+                                   "--added-by",  "calibration node"};
+  if (!options_.archive_device.empty()) args.insert(args.end(), {"--device", options_.archive_device});
+  if (!options_.archive_rig.empty()) args.insert(args.end(), {"--rig", options_.archive_rig});
+  std::thread([args]() {
+    const int status = run_package_script("archive", args);
+    if (status != 0) {
+      ROS_WARN("calibration: the result was not archived (%s exit status %d); it is in its file",
+               package_script("archive").c_str(), status);
+    }
+  }).detach();
 }
 
 void CalibrationNode::write_exports(const core::CalibrationReport& report) {

@@ -148,6 +148,11 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
   }
   require(o.exports.empty() || !o.output_dir.empty(), pnh, "exports",
           "needs output_dir (the files are written there)");
+  read_param(pnh, "archive", &o.archive);
+  read_param(pnh, "archive_device", &o.archive_device);
+  read_param(pnh, "archive_rig", &o.archive_rig);
+  require(o.archive.empty() || !o.output_dir.empty(), pnh, "archive",
+          "needs output_dir (the archived result and position table are written there)");
   return o;
 }
 

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <iomanip>
 #include <memory>
 #include <ostream>
@@ -429,14 +430,16 @@ void check_command_line(const OfflineFitArguments& args) {
 // of the JSON; the script writes the PDF atomically and prints one line on failure.
 void write_certificate(const std::string& json, const core::PositionTable& table,
                        const core::FitResult& certificate, const std::string& pdf,
-                       const std::string& result_name) {
+                       const std::string& result_name, const std::string& history_archive) {
   const std::string tmp = pdf + ".json.tmp." + std::to_string(::getpid());
   const std::string residuals = pdf + ".residuals.tmp." + std::to_string(::getpid());
   io::write_file_atomically(tmp, json);
   io::write_residuals_csv(residuals, table, certificate, certificate);
-  const int status = run_package_script(
-      "certificate_report",
-      {"--out", pdf, "--residuals", residuals, "--result-name", result_name, tmp});
+  std::vector<std::string> report_args = {"--out", pdf, "--residuals", residuals,
+                                          "--result-name", result_name, tmp};
+  // the device's history page, from the archive this result just went into
+  if (!history_archive.empty()) report_args.insert(report_args.begin(), {"--history-archive", history_archive});
+  const int status = run_package_script("certificate_report", report_args);
   std::remove(tmp.c_str());
   std::remove(residuals.c_str());
   if (status != 0) {
@@ -444,6 +447,48 @@ void write_certificate(const std::string& json, const core::PositionTable& table
                                            " failed (exit status " + std::to_string(status) +
                                            "); it needs /usr/bin/python3 with matplotlib"};
   }
+}
+
+// --archive: scripts/archive add on the written result (or a temporary copy), with the position
+// table and the input files (their sha256 names the record). The result files are already
+// written, so a failure to archive is a warning. The URL is never printed here: the script
+// prints it without its password. Returns whether the result is in the archive.
+bool archive_result(const OfflineFitArguments& args, const std::string& json,
+                    const core::PositionTable& table, std::ostream& err) {
+  const std::string tmp = (std::filesystem::temp_directory_path() / "offline_fit_archive.").string() +
+                          std::to_string(::getpid());
+  const bool json_file = !args.json_out.empty() && args.json_out != "-";
+  const std::string result_path = json_file ? args.json_out : tmp + ".json";
+  const std::string table_path = args.csv_out.empty() ? tmp + ".csv" : args.csv_out;
+  std::vector<std::string> command = {"--archive", args.archive, "add", result_path,
+                                      "--positions", table_path, "--added-by", "offline_fit",
+                                      "--input"};
+  const std::string single_input = args.csv.empty() ? args.samples : args.csv;
+  for (const std::string& input : args.bags.empty() ? std::vector<std::string>{single_input} : args.bags)
+    command.push_back(input);
+  if (!args.device.empty()) command.insert(command.end(), {"--device", args.device});
+  if (!args.rig.empty()) command.insert(command.end(), {"--rig", args.rig});
+  if (!json_file && args.json_out == "-") command.push_back("--quiet");  // stdout holds the JSON
+  int status = -1;
+  try {
+    if (!json_file) io::write_file_atomically(result_path, json);
+    if (args.csv_out.empty()) {
+      io::AtomicFile file(table_path);
+      core::write_position_table(file.stream(), table);
+      file.close();
+      file.commit();
+    }
+    status = run_package_script("archive", command);
+  } catch (const std::exception& e) {
+    err << kOfflineFitProgram << ": warning: --archive: " << as_one_line(e.what()) << std::endl;
+  }
+  if (!json_file) std::remove(result_path.c_str());
+  if (args.csv_out.empty()) std::remove(table_path.c_str());
+  if (status != 0) {
+    err << kOfflineFitProgram << ": warning: --archive: the result was not archived ("
+        << package_script("archive") << " exit status " << status << ")" << std::endl;
+  }
+  return status == 0;
 }
 
 int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
@@ -551,10 +596,12 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   for (const auto& e : exports) {
     if (!e.second.notice.empty()) err << kOfflineFitProgram << ": note: " << e.second.notice << std::endl;
   }
+  const bool archived = !args.archive.empty() && archive_result(args, json, input.table, err);
   if (!args.report_pdf.empty())
     write_certificate(json, input.table, report.certificate, args.report_pdf,
                       args.json_out.empty() || json_to_stdout ? "(not saved: offline_fit --json)"
-                                                              : args.json_out);
+                                                              : args.json_out,
+                      archived ? args.archive : "");
 
   io::write_text_report(json_to_stdout ? err : out, report, input.context);
   if (json_to_stdout) out << json << std::flush;

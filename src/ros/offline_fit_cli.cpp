@@ -91,6 +91,16 @@ bool parse_offline_fit_arguments(const std::vector<std::string>& arguments,
                  "budget and expanded uncertainties (k = 2) to the result");
   app.add_option("--report", args->report_pdf,
                  "write a calibration certificate (PDF) from the result");
+  auto* archive = app.add_option("--archive", args->archive,
+                                 "add the result to the lab archive (sqlite:///PATH or "
+                                 "postgresql://...; scripts/archive)")
+                      ->type_name("URL");
+  app.add_option("--device", args->device,
+                 "device serial for --archive (default: the budget file's certificate serial)")
+      ->needs(archive);
+  app.add_option("--rig", args->rig,
+                 "rig name for --archive (default: the budget file's certificate rig)")
+      ->needs(archive);
   try {
     std::vector<std::string> reversed(arguments.rbegin(), arguments.rend());
     app.parse(reversed);

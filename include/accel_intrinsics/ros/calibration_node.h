@@ -50,6 +50,11 @@ struct CalibrationOptions {
   std::string output_dir;         // checkpoint, result YAML, analysis JSON; empty = no files
   std::string file_prefix;        // prefix of the file names in output_dir
   std::vector<io::ExportFormat> exports;  // written into output_dir with each result
+  // Lab archive URL (scripts/archive add after each result file; DESIGN.md section 13); empty:
+  // none. Serial and rig of the record when the budget file's certificate block has none.
+  std::string archive;
+  std::string archive_device;
+  std::string archive_rig;
   std::string frame_id = "dut";   // frame of the result header
   bool immediate_imu = true;      // handle IMU messages in the network thread
   double imu_coalesce_s = 0.001;  // nap of the network thread woken from idle, s
@@ -109,6 +114,9 @@ class CalibrationNode {
                            const core::AssemblerCounters& counters, const ros::Time& stamp);
   // The files of options_.exports in output_dir; a failure is logged, never fatal.
   void write_exports(const core::CalibrationReport& report);
+  // scripts/archive add of the result file just written, on a detached thread (the script takes
+  // a second); a failure is a warning, the result file stays.
+  void archive_result() const;
   // Returns the one-line summary (logged, and the analyze service's answer).
   std::string publish_analysis(const core::CalibrationReport& report, const ros::Time& stamp);
   void publish_status(const ros::Time& now);

@@ -7,7 +7,7 @@
 //               [--gravity G] [--model joint|eq4] [--analyze] [--json OUT] [--csv-out FILE]
 //               [--settle-discard SECONDS] [--imu-time-offset SECONDS] [--skip-clock-check]
 //               [--output-unit UNIT] [--export NAME=FILE]... [--budget FILE]
-//               [--report FILE.pdf]
+//               [--report FILE.pdf] [--archive URL [--device SERIAL] [--rig NAME]]
 //
 // The joint model takes any set of known orientations (position table rows with f_x,f_y,f_z)
 // that determines S and O, and a gimbal run missing a phase when the others determine S: the
@@ -44,6 +44,8 @@
 // certificate (core/uncertainty_budget.h) as `uncertainty_budget`, and the file's certificate
 // block as `certificate`. --report FILE.pdf writes the calibration certificate with
 // scripts/certificate_report (/usr/bin/python3, matplotlib), from the same JSON.
+// --archive URL adds the result, its position table and the input's sha256 to the lab archive
+// (scripts/archive add) after the files are written; a failure to archive is a warning.
 #pragma once
 
 #include <iosfwd>
@@ -93,6 +95,11 @@ struct OfflineFitArguments {
   std::vector<std::string> exports;  // "NAME=FILE", each parsed by io::parse_export_spec
   std::string budget;      // uncertainty budget file (YAML); empty: type A only
   std::string report_pdf;  // certificate PDF; empty: none
+  // Lab archive URL (scripts/archive, DESIGN.md section 13); empty: none. device and rig name
+  // the record when the budget file's certificate block has no serial or rig.
+  std::string archive;
+  std::string device;
+  std::string rig;
   // Given explicitly (they apply to --bag only, and are refused with --csv).
   bool imu_topic_given = false;
   bool command_topic_given = false;
