@@ -339,18 +339,8 @@ void CalibrationNode::publish_certificate(const core::CalibrationReport& report,
 }
 
 void CalibrationNode::archive_result() const {
-  std::vector<std::string> args = {"--archive",   options_.archive,    "add",
-                                   files_.result_path(), "--positions", files_.table_path(),
-                                   "--added-by",  "calibration node"};
-  if (!options_.archive_device.empty()) args.insert(args.end(), {"--device", options_.archive_device});
-  if (!options_.archive_rig.empty()) args.insert(args.end(), {"--rig", options_.archive_rig});
-  std::thread([args]() {
-    const int status = run_package_script("archive", args);
-    if (status != 0) {
-      ROS_WARN("calibration: the result was not archived (%s exit status %d); it is in its file",
-               package_script("archive").c_str(), status);
-    }
-  }).detach();
+  archive_result_file(options_.archive, options_.archive_device, options_.archive_rig,
+                      files_.result_path(), files_.table_path());
 }
 
 void CalibrationNode::write_exports(const core::CalibrationReport& report) {

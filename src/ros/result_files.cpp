@@ -2,6 +2,10 @@
 
 #include <ros/console.h>
 
+#include <thread>
+
+#include "accel_intrinsics/ros/scripts.h"
+
 namespace accel_intrinsics {
 
 void write_exports(const io::CheckpointFiles& files, const std::vector<io::ExportFormat>& formats,
@@ -37,6 +41,23 @@ void write_result_files(const io::CheckpointFiles& files,
     return;
   }
   write_exports(files, formats, report);
+}
+
+void archive_result_file(const std::string& archive, const std::string& device,
+                         const std::string& rig, const std::string& result_path,
+                         const std::string& table_path) {
+  if (archive.empty()) return;
+  std::vector<std::string> args = {"--archive", archive,    "add",      result_path,
+                                   "--positions", table_path, "--added-by", "calibration node"};
+  if (!device.empty()) args.insert(args.end(), {"--device", device});
+  if (!rig.empty()) args.insert(args.end(), {"--rig", rig});
+  std::thread([args]() {
+    const int status = run_package_script("archive", args);
+    if (status != 0) {
+      ROS_WARN("calibration: the result was not archived (%s exit status %d); it is in its file",
+               package_script("archive").c_str(), status);
+    }
+  }).detach();
 }
 
 }  // namespace accel_intrinsics

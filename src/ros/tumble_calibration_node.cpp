@@ -104,7 +104,18 @@ bool TumbleCalibrationNode::fit_and_publish(std::string* message) {
   rests.rejected = session_.detector().rejected();
   context.rest_detection = rests;
   context.rest_min_s = options_.session.rests.min_rest_s;
+  if (files_.enabled()) {
+    // The rests as a position table (phase '-': unknown orientations), beside the result.
+    try {
+      core::write_position_table_file(files_.table_path(), session_.table());
+    } catch (const std::exception& e) {
+      ROS_ERROR("calibration: %s", e.what());
+    }
+  }
   write_result_files(files_, options_.common.exports, report, context);
+  if (files_.enabled())
+    archive_result_file(options_.common.archive, options_.common.archive_device,
+                        options_.common.archive_rig, files_.result_path(), files_.table_path());
   std::ostringstream s;
   s << "tumble fit of " << session_.table().rows.size() << " rests, reduced chi2 "
     << report.certificate.reduced_chi2 << ", g = " << report.certificate.local_gravity << " m/s^2";

@@ -4,6 +4,7 @@
 // file that cannot be written must not stop a running stand.
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "accel_intrinsics/core/calibrate.h"
@@ -21,5 +22,12 @@ void write_exports(const io::CheckpointFiles& files, const std::vector<io::Expor
 void write_result_files(const io::CheckpointFiles& files,
                         const std::vector<io::ExportFormat>& formats,
                         const core::CalibrationReport& report, const io::ResultContext& context);
+
+// scripts/archive add of a result file just written (with its position table), on a detached
+// thread: the script takes a second or two, and a failure is a warning (the result is in its
+// file). Nothing when `archive` (the URL) is empty.
+void archive_result_file(const std::string& archive, const std::string& device,
+                         const std::string& rig, const std::string& result_path,
+                         const std::string& table_path);
 
 }  // namespace accel_intrinsics
