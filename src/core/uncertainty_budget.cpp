@@ -11,6 +11,7 @@
 
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/core/intrinsics.h"
+#include "accel_intrinsics/core/tumble.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -193,6 +194,16 @@ BudgetRefit::BudgetRefit(const PositionTable& table, const FitResult& fit, std::
   if (geoms_.size() != table.rows.size())
     throw FitError("uncertainty budget: the position table's geometry does not match its rows");
   closed_form_ = fit.effects.empty();
+  if (fit.model == FitModel::Tumble) {
+    // A hand tumble: each rest where the fit puts it (its orientation is not known otherwise);
+    // the tumble fit is not linear in the means.
+    const std::vector<Eigen::Vector3d> ups = rest_up_directions(fit, table);
+    for (std::size_t i = 0; i < geoms_.size(); ++i) {
+      geoms_[i].has_direction = true;
+      geoms_[i].direction = ups[i];
+    }
+    closed_form_ = false;
+  }
   y0_ = simulate(RigErrors{});
 
   // The run's fit, on the noise-free outputs of the fitted device (weights: the run's std).

@@ -3,10 +3,12 @@
 // topic alone, written here with rosbag (duplicated, reordered and shifted stamps); a gimbal run
 // fitted with --unknown-orientations against the gimbal fit.
 #include <gtest/gtest.h>
+#include <Eigen/Dense>
 #include <rosbag/bag.h>
 #include <sensor_msgs/Imu.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -191,6 +193,61 @@ TEST(TumbleOffline, UnknownOrientationsOnAGimbalTableAgreesWithTheGimbalFit) {
   // The tumble's S is lower-triangular (sensor frame), the gimbal's is not.
   EXPECT_EQ(t["vectors"]["u"][1].get<double>(), 0.0);
   EXPECT_NE(g["vectors"]["u"][1].get<double>(), 0.0);
+}
+
+// Everything downstream takes a tumble result: a budget of g alone (the gimbal sources refused,
+// naming why), exports read back by their own equations, the certificate stating the method.
+TEST(TumbleOffline, BudgetExportsAndCertificateTakeATumble) {
+  TempDir dir;
+  {
+    std::ofstream out(dir.file("g_only.yaml"));
+    out << "gravity_std_rel: 1.0e-4\nsamples: 50\ncertificate:\n  lab: Tumble Lab\n";
+    std::ofstream gimbal(dir.file("gimbal.yaml"));
+    gimbal << "gravity_std_rel: 1.0e-4\nangle_offset_std_deg: 0.01\nsamples: 50\n";
+  }
+  OfflineFitArguments args;
+  args.samples = kXsens + "xsens_acc.mat";
+  args.output_unit = "counts";
+  args.budget = dir.file("gimbal.yaml");
+  ToolRun r = run(args);
+  EXPECT_EQ(r.status, kOfflineFitBadInput);
+  EXPECT_NE(r.err.find("gravity_std_rel only"), std::string::npos) << r.err;
+
+  args.budget = dir.file("g_only.yaml");
+  args.json_out = dir.file("tumble.json");
+  args.exports = {"imu_tk=" + dir.file("imu_tk.txt"), "imu_calib=" + dir.file("imu_calib.yaml")};
+  args.report_pdf = dir.file("certificate.pdf");
+  r = run(args);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const nlohmann::json j = read_json(args.json_out);
+  // g enters every responsivity alike: its relative contribution is gravity_std_rel.
+  const nlohmann::json& sources = j["uncertainty_budget"]["sources"];
+  bool gravity = false;
+  for (const nlohmann::json& source : sources) {
+    if (source["name"] != "gravity_std_rel") continue;
+    gravity = true;
+    EXPECT_NEAR(source["responsivity_std"]["u"].get<double>() / j["responsivity"]["u"].get<double>(),
+                1.0e-4, 1.0e-6);
+  }
+  EXPECT_TRUE(gravity) << sources.dump();
+  // imu_tk's text file: T (3x3), K (3x3), B (3): a' = T K (raw - B) must give |a'| = g at rests.
+  std::ifstream in(dir.file("imu_tk.txt"));
+  Eigen::Matrix3d T, K;
+  Eigen::Vector3d B;
+  for (int i = 0; i < 9; ++i) in >> T(i / 3, i % 3);
+  for (int i = 0; i < 9; ++i) in >> K(i / 3, i % 3);
+  for (int i = 0; i < 3; ++i) in >> B(i);
+  ASSERT_TRUE(in) << "imu_tk export did not parse";
+  const double g = j["local_gravity"];
+  for (const nlohmann::json& rest : j["rests"]) {
+    const Eigen::Vector3d raw(rest["mean"]["u"], rest["mean"]["v"], rest["mean"]["w"]);
+    EXPECT_NEAR((T * K * (raw - B)).norm(), g, 0.01) << rest.dump();
+  }
+  if (std::system("command -v pdftotext >/dev/null") == 0) {
+    ASSERT_EQ(std::system(("pdftotext -layout " + args.report_pdf + " " + dir.file("c.txt")).c_str()), 0);
+    const std::string text = test_support::read_file(dir.file("c.txt"));
+    EXPECT_NE(text.find("hand tumble, orientations unknown"), std::string::npos) << text;
+  }
 }
 
 TEST(TumbleOffline, BadInputsGiveOneLine) {
