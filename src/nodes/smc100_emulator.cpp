@@ -1,5 +1,5 @@
-// smc100_emulator: Newport SMC100 controllers on a pseudo-terminal (drivers/emulators.h).
-#include "accel_intrinsics/drivers/emulator_main.h"
+// smc100_emulator: Newport SMC100 controllers on a pseudo-terminal (emulators/emulators.h).
+#include "accel_intrinsics/emulators/emulator_main.h"
 
 int main(int argc, char** argv) {
   return accel_intrinsics::emulator_main("smc100", argc, argv);

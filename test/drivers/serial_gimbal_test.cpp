@@ -13,7 +13,7 @@
 #include <thread>
 
 #include "accel_intrinsics/core/constants.h"
-#include "accel_intrinsics/drivers/emulators.h"
+#include "accel_intrinsics/emulators/emulators.h"
 #include "accel_intrinsics/drivers/grbl_driver.h"
 #include "accel_intrinsics/drivers/serial_port.h"
 #include "accel_intrinsics/drivers/smc100_driver.h"

@@ -1,5 +1,5 @@
 // GRBL 1.1 and SMC100 emulators on a pseudo-terminal.
-#include "accel_intrinsics/drivers/emulators.h"
+#include "accel_intrinsics/emulators/emulators.h"
 
 #include <fcntl.h>
 #include <poll.h>

@@ -1,5 +1,5 @@
 // Command line of the device emulators.
-#include "accel_intrinsics/drivers/emulator_main.h"
+#include "accel_intrinsics/emulators/emulator_main.h"
 
 #include <CLI/CLI.hpp>
 #include <csignal>
@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/drivers/emulators.h"
+#include "accel_intrinsics/emulators/emulators.h"
 
 namespace accel_intrinsics {
 
