@@ -257,9 +257,7 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
       progress.update(++done);
       // The calibration node's acceptance test (CalibrationNode::handle_command), so that both
       // see the same commands.
-      if (command.phase > GimbalCommand::PHASE_Z || command.state > GimbalCommand::DONE ||
-          !std::isfinite(command.angle) || !core::step_in_protocol(command.step, command.steps) ||
-          command.header.stamp.isZero()) {
+      if (!is_well_formed(command)) {
         ++stats.invalid_commands;
         return;
       }
