@@ -117,6 +117,7 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
           "must be 'abort' or 'retry' (got '" + on_fault + "')");
   o.run.retry_on_fault = on_fault == "retry";
   read_param(pnh, "max_retries", &o.run.max_retries);
+  read_param(pnh, "resume_idle_controller", &o.run.resume_idle_controller);
   require(o.run.max_retries <= 100, pnh, "max_retries", "must be in [0, 100]");
   // Clocks (DESIGN.md section 5).
   read_param(pnh, "imu_time_offset_s", &o.run.imu_time_offset_s);
