@@ -159,7 +159,13 @@ int main(int argc, char** argv) {
       "dwells_x %s\n",
       status["samples_used"].c_str(), status["dropped_outside_dwell"].c_str(),
       status["dropped_late"].c_str(), status["dwells_x"].c_str());
-  std::printf("received %s of %llu IMU messages sent\n", status["received"].c_str(),
+  // Every sample the node took in is in one of its counters (used, or dropped for a reason).
+  unsigned long long received = 0;
+  for (const char* key : {"samples_used", "dropped_outside_dwell", "dropped_settle_discard",
+                          "dropped_non_finite", "dropped_backwards", "duplicates", "dropped_late"}) {
+    received += std::strtoull(status[key].c_str(), nullptr, 10);
+  }
+  std::printf("received %llu of %llu IMU messages sent\n", received,
               static_cast<unsigned long long>(sent));
   if (loader) loader->clear();
   return 0;

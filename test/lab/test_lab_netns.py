@@ -129,7 +129,9 @@ class Lab:
         return env
 
     def start(self, pc, key, argv):
-        log = open(os.path.join(self.directory, "%s.log" % key), "a")
+        # On the PC's own "disk": its processes' output beside its ROS logs.
+        os.makedirs(os.path.join(self.directory, pc), exist_ok=True)
+        log = open(os.path.join(self.directory, pc, "%s.log" % key), "a")
         self.logs[key] = log.name
         log.write("\n==== %s: %s\n" % (time.strftime("%H:%M:%S"), " ".join(argv)))
         log.flush()
@@ -328,7 +330,11 @@ def test_two_stands_on_a_namespace_lab_survive_a_cut_link_a_rebooted_stand_and_a
             "--json", report, "--timeout", "400", "--silence-s", "4", "--max-sigma", "5",
             "--quiet"])
         t0 = time.monotonic()
-        sleep_until = lambda s: time.sleep(max(0.0, t0 + s - time.monotonic()))
+
+        def sleep_until(s):
+            time.sleep(max(0.0, t0 + s - time.monotonic()))
+            assert supervise.poll() is None, "supervise ended before the faults:\n%s" % read(
+                lab.logs["supervise"])[-4000:]
 
         # 1. stand1's cable pulled for 8 s.
         sleep_until(10)
