@@ -27,8 +27,8 @@ class CalibrationNodelet : public nodelet::Nodelet {
       if (mode != "gimbal") throw ParamError("parameter ~mode: '" + mode + "' (gimbal or tumble)");
       CalibrationOptions options = CalibrationOptions::load(pnh);
       // In a manager the IMU publisher's thread is the driver's: unless asked otherwise, the
-      // messages go to the nodelet's own queue and thread, which handles every imu_coalesce_s
-      // what came meanwhile (one wake-up per period), never in the driver's thread.
+      // messages go to the nodelet's own queue and thread, which handles every imu_batch_s what
+      // came meanwhile (one wake-up per period), never in the driver's thread.
       if (!pnh.hasParam("immediate_imu")) options.immediate_imu = false;
       node_.reset(new CalibrationNode(getNodeHandle(), pnh, options));
     } catch (const ParamError& e) {

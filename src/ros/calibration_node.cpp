@@ -68,7 +68,7 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
   ros::CallbackQueueInterface* imu_queue = nullptr;  // the node handle's
   if (options_.immediate_imu) {
     imu_queue = &immediate_queue_;
-  } else if (options_.imu_coalesce_s > 0.0) {
+  } else if (options_.imu_batch_s > 0.0) {
     imu_queue_.reset(new ros::CallbackQueue);
     imu_queue = imu_queue_.get();
   }
@@ -127,8 +127,8 @@ CalibrationNode::~CalibrationNode() {
 void CalibrationNode::serve_imu_queue() {
   // As the apply node's (serve_coalesced): callAvailable waits for the first message after an
   // idle spell and handles what is there; the nap lets the next ones pile up in the queue.
-  // Publishers adding meanwhile wake nobody: one wake-up per imu_coalesce_s at most.
-  const auto nap = std::chrono::duration<double>(options_.imu_coalesce_s);
+  // Publishers adding meanwhile wake nobody: one wake-up per imu_batch_s at most.
+  const auto nap = std::chrono::duration<double>(options_.imu_batch_s);
   while (serving_imu_) {
     imu_queue_->callAvailable(ros::WallDuration(0.1));
     if (serving_imu_) std::this_thread::sleep_for(nap);

@@ -80,6 +80,9 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
   read_param(pnh, "imu_coalesce_s", &o.imu_coalesce_s);
   require(std::isfinite(o.imu_coalesce_s) && o.imu_coalesce_s >= 0.0 && o.imu_coalesce_s <= 0.05,
           pnh, "imu_coalesce_s", "must be in [0, 0.05] s");
+  read_param(pnh, "imu_batch_s", &o.imu_batch_s);
+  require(std::isfinite(o.imu_batch_s) && o.imu_batch_s >= 0.0 && o.imu_batch_s <= 0.05, pnh,
+          "imu_batch_s", "must be in [0, 0.05] s");
   read_param(pnh, "file_prefix", &o.file_prefix);
   require(o.file_prefix.find('/') == std::string::npos, pnh, "file_prefix", "must not contain '/'");
   // Analysis.

@@ -59,11 +59,11 @@ struct CalibrationOptions {
   std::string archive_rig;
   std::string frame_id = "dut";   // frame of the result header
   bool immediate_imu = true;      // handle IMU messages in the network thread
-  // immediate_imu: nap of the network thread woken from idle, s. Without immediate_imu and with
-  // imu_coalesce_s > 0, the IMU messages go to a queue of the node's own, served by a thread of
-  // its own that handles every coalesce period what came meanwhile (the nodelet's default: one
+  double imu_coalesce_s = 0.001;  // nap of the network thread woken from idle, s
+  // Without immediate_imu: the IMU messages go to a queue of the node's own, served by a thread
+  // of its own that handles every imu_batch_s what came meanwhile (the nodelet's default: one
   // wake-up per period, never in the publisher's thread); 0: the node handle's queue.
-  double imu_coalesce_s = 0.001;
+  double imu_batch_s = 0.005;
   bool resume = false;            // reload the checkpoint of output_dir at start
   std::string gimbal_controller = "gimbal_controller";  // the controller's node name (relative)
   // After DONE, wall time without a message or clock tick after which the run is fitted although
