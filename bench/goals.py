@@ -17,6 +17,7 @@ import sys
 ISSUE12 = "issue 12"
 ISSUE15 = "issue 15"
 ISSUE22 = "issue 22"
+ISSUE26 = "issue 26"
 SET_HERE = "set here"
 
 
@@ -66,6 +67,9 @@ def main(argv):
         ("calibration node at 10 kHz, dwells of 10 s / 60 s (worst)", lambda: fmax("node_load_dwell_10s_cpu", "node_load_dwell_60s_cpu"), "<", 10.0, pct, SET_HERE),
         ("calibration node, late drops at 10 kHz (all runs)", lambda: sum(v for k, (v, _) in figures.items() if k.startswith("node_load_") and k.endswith("_dropped_late")) if any(k.endswith("_dropped_late") for k in figures) else f("node_load_dwell_1.5s_dropped_late"), "<=", 0, lambda v: "%.0f" % v, SET_HERE),
         ("calibration node memory growth, dwells of 1.5 / 10 / 60 s (flat)", lambda: fmax("node_load_dwell_1.5s_rss_growth", "node_load_dwell_10s_rss_growth", "node_load_dwell_60s_rss_growth"), "<=", 1024, kb, ISSUE15 + " (flat; 1 MB set here)"),
+        ("calibration nodelet at 50 kHz (in process, pointers), 5 messages per 100 µs", lambda: f("calibration_nodelet_50khz_paced_cpu"), "<", 5.0, pct, ISSUE26),
+        ("calibration nodelet at 50 kHz (in process, pointers), bursts of 25", lambda: f("calibration_nodelet_50khz_bursty_cpu"), "<", 5.0, pct, ISSUE26),
+        ("calibration nodelet at 50 kHz: messages not received or dropped late (all runs)", lambda: sum(f("calibration_nodelet_50khz_%s_%s" % (a, b)) for a in ("paced", "bursty") for b in ("lost", "dropped_late")), "<=", 0, lambda v: "%.0f" % v, ISSUE26),
         ("apply node at 10 kHz (TCP in and out), bursts of 5", lambda: f("apply_node_bursty_cpu"), "<", 5.0, pct, ISSUE12),
         ("apply node at 10 kHz (TCP in and out), one message per 100 µs", lambda: f("apply_node_paced_cpu"), "<", 5.0, pct, ISSUE12),
         ("apply nodelet at 10 kHz (in process, pointers), bursts of 5", lambda: f("apply_nodelet_bursty_cpu"), "<", 5.0, pct, ISSUE12),

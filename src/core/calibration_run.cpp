@@ -293,14 +293,18 @@ RunActions CalibrationRun::tick(double now_s) {
     controller_restarted_ = false;
     begin_resume("the gimbal controller restarted mid-run");
   }
-  if (resume_pending_ && controller_state_ == "DONE") {
+  const bool idle_stand = options_.resume_idle_controller && controller_state_ == "IDLE";
+  if (resume_pending_ && (controller_state_ == "DONE" || idle_stand)) {
     // No gimbal command since the restart and the controller finished the protocol meanwhile
     // (this node died in the last dwells): resume after a grace period. An idle controller
-    // (a fresh stand over an old checkpoint) is never started from here.
+    // (a fresh stand over an old checkpoint) is started from here only with
+    // resume_idle_controller (the whole stand PC restarted; a lab's unattended stand).
     if (std::isnan(resume_deadline_s_)) {
       resume_deadline_s_ = now_s + std::max(2.0, 2.0 * options_.assembler.reorder_window_s);
     } else if (now_s >= resume_deadline_s_) {
-      begin_resume("calibration node restarted from its checkpoint");
+      begin_resume(idle_stand ? "stand restarted (calibration node and an idle gimbal "
+                                "controller) from its checkpoint"
+                              : "calibration node restarted from its checkpoint");
     }
   }
   if (restore_done_) {

@@ -30,6 +30,7 @@ DwellAssembler::DwellAssembler(const AssemblerOptions& options) : options_(optio
 
 void DwellAssembler::reset() {
   pending_ = decltype(pending_)();
+  in_order_.clear();
   next_sequence_ = 0;
   newest_stamp_s_ = kNegInf;
   released_until_s_ = kNegInf;
@@ -90,7 +91,11 @@ void DwellAssembler::push(Event event) {
     process(event);  // a late command: best effort, already counted
     return;
   }
-  pending_.push(std::move(event));
+  if (in_order_.empty() || !Later()(in_order_.back(), event)) {
+    in_order_.push_back(std::move(event));
+  } else {
+    pending_.push(std::move(event));
+  }
   release_until(newest_stamp_s_ - options_.reorder_window_s);
 }
 
@@ -99,13 +104,21 @@ void DwellAssembler::flush_until(double stamp_s) { release_until(stamp_s); }
 void DwellAssembler::flush() { release_until(std::numeric_limits<double>::infinity()); }
 
 void DwellAssembler::release_until(double stamp_s) {
-  while (!pending_.empty() && pending_.top().stamp_s <= stamp_s) {
-    const Event event = pending_.top();
-    pending_.pop();
+  while (!pending_empty()) {
+    // The earlier of the two fronts (Later: a strict total order, sequences are unique).
+    const bool from_heap =
+        in_order_.empty() || (!pending_.empty() && Later()(in_order_.front(), pending_.top()));
+    if ((from_heap ? pending_.top() : in_order_.front()).stamp_s > stamp_s) break;
+    const Event event = from_heap ? pending_.top() : std::move(in_order_.front());
+    if (from_heap) {
+      pending_.pop();
+    } else {
+      in_order_.pop_front();
+    }
     if (event.stamp_s > released_until_s_) released_until_s_ = event.stamp_s;
     process(event);
   }
-  if (stamp_s > released_until_s_ && pending_.empty() && std::isfinite(stamp_s)) released_until_s_ = stamp_s;
+  if (stamp_s > released_until_s_ && pending_empty() && std::isfinite(stamp_s)) released_until_s_ = stamp_s;
 }
 
 void DwellAssembler::process(const Event& event) {

@@ -5,6 +5,7 @@
 #include <std_msgs/String.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <sstream>
 #include <thread>
@@ -57,15 +58,23 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
       nh_.advertiseService(names::kGetIntrinsicsService, &CalibrationNode::on_get_intrinsics, this);
   reset_srv_ = nh_.advertiseService(names::kResetService, &CalibrationNode::on_reset, this);
   analyze_srv_ = nh_.advertiseService(names::kAnalyzeService, &CalibrationNode::on_analyze, this);
-  updater_.reset(new diagnostic_updater::Updater(nh_, pnh_));
+  // Named after the node (its private namespace), also in a nodelet manager.
+  updater_.reset(new diagnostic_updater::Updater(nh_, pnh_, pnh_.getNamespace()));
   updater_->setHardwareID("accel_intrinsics " + nh_.getNamespace());
   updater_->add("imu", this, &CalibrationNode::diagnose_imu);
   updater_->add("run", this, &CalibrationNode::diagnose_run);
   command_sub_ = nh_.subscribe(names::kGimbalCommandTopic, 1000, &CalibrationNode::on_command, this,
                                ros::TransportHints().tcpNoDelay());
+  ros::CallbackQueueInterface* imu_queue = nullptr;  // the node handle's
+  if (options_.immediate_imu) {
+    imu_queue = &immediate_queue_;
+  } else if (options_.imu_batch_s > 0.0) {
+    imu_queue_.reset(new ros::CallbackQueue);
+    imu_queue = imu_queue_.get();
+  }
   ros::SubscribeOptions imu_options = ros::SubscribeOptions::create<sensor_msgs::Imu>(
       names::kImuTopic, 20000, boost::bind(&CalibrationNode::on_imu, this, boost::placeholders::_1),
-      ros::VoidConstPtr(), options_.immediate_imu ? &immediate_queue_ : nullptr);
+      ros::VoidConstPtr(), imu_queue);
   immediate_queue_.set_coalesce_period(options_.imu_coalesce_s);
   imu_sub_ = nh_.subscribe(imu_options);
   temperature_sub_ =
@@ -83,6 +92,10 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
            options_.calibrate.analyze ? ", analysis after the fit" : "",
            options_.resume ? ", resume from the checkpoint" : "");
   // Last: nothing after this may throw (a joinable std::thread must not be destroyed).
+  if (imu_queue_) {
+    serving_imu_ = true;
+    imu_thread_ = std::thread(&CalibrationNode::serve_imu_queue, this);
+  }
   fit_thread_ = std::thread(&CalibrationNode::fit_loop, this);
 }
 
@@ -92,6 +105,10 @@ CalibrationNode::~CalibrationNode() {
     shutting_down_ = true;  // a fit still running is finished and discarded
   }
   imu_sub_.shutdown();
+  if (imu_thread_.joinable()) {
+    serving_imu_ = false;
+    imu_thread_.join();
+  }
   temperature_sub_.shutdown();
   command_sub_.shutdown();
   timer_.stop();
@@ -106,6 +123,17 @@ CalibrationNode::~CalibrationNode() {
 }
 
 // ---- Inputs ------------------------------------------------------------------------------------
+
+void CalibrationNode::serve_imu_queue() {
+  // As the apply node's (serve_coalesced): callAvailable waits for the first message after an
+  // idle spell and handles what is there; the nap lets the next ones pile up in the queue.
+  // Publishers adding meanwhile wake nobody: one wake-up per imu_batch_s at most.
+  const auto nap = std::chrono::duration<double>(options_.imu_batch_s);
+  while (serving_imu_) {
+    imu_queue_->callAvailable(ros::WallDuration(0.1));
+    if (serving_imu_) std::this_thread::sleep_for(nap);
+  }
+}
 
 void CalibrationNode::handle_command(const GimbalCommand& msg) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);

@@ -80,6 +80,9 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
   read_param(pnh, "imu_coalesce_s", &o.imu_coalesce_s);
   require(std::isfinite(o.imu_coalesce_s) && o.imu_coalesce_s >= 0.0 && o.imu_coalesce_s <= 0.05,
           pnh, "imu_coalesce_s", "must be in [0, 0.05] s");
+  read_param(pnh, "imu_batch_s", &o.imu_batch_s);
+  require(std::isfinite(o.imu_batch_s) && o.imu_batch_s >= 0.0 && o.imu_batch_s <= 0.05, pnh,
+          "imu_batch_s", "must be in [0, 0.05] s");
   read_param(pnh, "file_prefix", &o.file_prefix);
   require(o.file_prefix.find('/') == std::string::npos, pnh, "file_prefix", "must not contain '/'");
   // Analysis.
@@ -117,6 +120,7 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
           "must be 'abort' or 'retry' (got '" + on_fault + "')");
   o.run.retry_on_fault = on_fault == "retry";
   read_param(pnh, "max_retries", &o.run.max_retries);
+  read_param(pnh, "resume_idle_controller", &o.run.resume_idle_controller);
   require(o.run.max_retries <= 100, pnh, "max_retries", "must be in [0, 100]");
   // Clocks (DESIGN.md section 5).
   read_param(pnh, "imu_time_offset_s", &o.run.imu_time_offset_s);

@@ -21,6 +21,10 @@ SimClockOptions SimClockOptions::load(const ros::NodeHandle& pnh) {
   read_param(pnh, "start_s", &o.start_s);
   require(std::isfinite(o.start_s) && o.start_s > 0.0 && o.start_s < 2e9, pnh, "start_s",
           "must be in (0, 2e9) s");
+  read_param(pnh, "wall_epoch_s", &o.wall_epoch_s);
+  require(std::isfinite(o.wall_epoch_s) && o.wall_epoch_s >= 0.0 &&
+              o.wall_epoch_s <= ros::WallTime::now().toSec(),
+          pnh, "wall_epoch_s", "must be 0 (now) or a wall time (s since 1970) not in the future");
   return o;
 }
 
@@ -50,9 +54,10 @@ bool SimClock::on_pause(std_srvs::SetBool::Request& req, std_srvs::SetBool::Resp
 }
 
 void SimClock::run() {
-  ROS_INFO("sim_clock: /clock from %.1f s at %.2fx real time, %.0f Hz", options_.start_s,
-           options_.time_scale, options_.rate_hz);
-  wall0_ = ros::WallTime::now();
+  ROS_INFO("sim_clock: /clock from %.1f s at %.2fx real time, %.0f Hz%s", options_.start_s,
+           options_.time_scale, options_.rate_hz,
+           options_.wall_epoch_s > 0.0 ? " (timeline continued from wall_epoch_s)" : "");
+  wall0_ = options_.wall_epoch_s > 0.0 ? ros::WallTime(options_.wall_epoch_s) : ros::WallTime::now();
   ros::WallRate rate(options_.rate_hz);
   while (ros::ok()) {
     ros::spinOnce();  // ~pause

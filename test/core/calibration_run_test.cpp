@@ -466,6 +466,43 @@ TEST(CalibrationRun, RestartFromCheckpointContinuesAfterTheLastRow) {
   EXPECT_EQ(stand.fitted_[0].time_origin_s, state.time_origin_s);
 }
 
+// The stand PC restarted: the calibration node comes back from its checkpoint beside a fresh,
+// IDLE gimbal controller. Only with resume_idle_controller is that controller told to continue.
+TEST(CalibrationRun, RestartedStandWithAnIdleControllerResumesOnlyWhenAllowed) {
+  for (const bool allowed : {false, true}) {
+    SCOPED_TRACE(allowed ? "resume_idle_controller" : "default");
+    FakeStand stand;
+    const auto cut = stand.dwell_interval(Phase::Y, 2);
+    {
+      CalibrationRun first(options_for(4));
+      stand.play(&first, cut.first + 0.3);  // the PC loses power in dwell y 2
+    }
+    PositionTable saved;
+    saved.rows = stand.checkpoint_rows_;
+    ASSERT_EQ(saved.rows.size(), 6u);  // x 0..3, y 0..1
+    RunOptions o = options_for(4);
+    o.resume_idle_controller = allowed;
+    CalibrationRun second(o);
+    stand.carry_out(&second, second.restore(saved, stand.checkpoint_));
+    stand.restart_controller(&second);  // fresh controller: IDLE, no commands
+    stand.play(&second);
+    if (!allowed) {
+      EXPECT_TRUE(stand.resumes_.empty());
+      EXPECT_TRUE(stand.fitted_.empty());
+      continue;
+    }
+    ASSERT_EQ(stand.resumes_.size(), 1u);
+    EXPECT_EQ(stand.resumes_[0].phase, Phase::Y);
+    EXPECT_EQ(stand.resumes_[0].step, 1u);
+    EXPECT_TRUE(stand.resumes_[0].after);
+    EXPECT_NE(stand.resumes_[0].reason.find("stand restarted"), std::string::npos);
+    EXPECT_EQ(second.state(), RunState::Done);
+    ASSERT_EQ(stand.fitted_.size(), 1u);
+    expect_complete_table(stand.fitted_[0], 4);
+    EXPECT_EQ(stand.fitted_[0].time_origin_s, stand.checkpoint_.time_origin_s);
+  }
+}
+
 TEST(CalibrationRun, RestoredCompleteRunIsFittedAtOnce) {
   FakeStand stand;
   CalibrationRun first(options_for(4));

@@ -230,3 +230,48 @@ TEST(DwellAssembler, RecordsTheClosingPositionAsStepN) {
     }
   }
 }
+
+TEST(DwellAssembler, ReleasesInStampOrderWhateverMixOfInOrderAndLateArrivals) {
+  // Most messages arrive in order (the fast path), some late within the window (the heap), a
+  // command arrives after a sample with its stamp: released strictly by (stamp, commands first,
+  // arrival), the order of one heap over everything.
+  core::AssemblerOptions options;
+  options.reorder_window_s = 0.5;
+  core::DwellAssembler assembler(options);
+  std::vector<std::pair<double, char>> released;  // (stamp, 'c' command / 's' sample)
+  assembler.set_release_observers(
+      [&](const core::GimbalEvent& c) { released.push_back({c.stamp_s, 'c'}); },
+      [&](const core::ImuSample& s) { released.push_back({s.stamp_s, 's'}); });
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<double> stamps;
+  for (int i = 0; i < 2000; ++i) stamps.push_back(0.001 * i);
+  // One in ten arrives up to 0.3 s late.
+  std::vector<std::pair<double, double>> arrivals;  // (arrival, stamp)
+  for (double t : stamps) arrivals.push_back({t + (u(rng) < 0.1 ? 0.3 * u(rng) : 0.0), t});
+  std::stable_sort(arrivals.begin(), arrivals.end());
+  core::GimbalEvent moving;
+  moving.state = core::GimbalState::Moving;
+  bool command_sent = false;
+  for (const auto& a : arrivals) {
+    core::ImuSample s;
+    s.stamp_s = a.second;
+    assembler.add_sample(s);
+    if (!command_sent && a.second == stamps[500]) {
+      moving.stamp_s = stamps[500];  // after the sample with its stamp
+      assembler.add_command(moving);
+      command_sent = true;
+    }
+  }
+  assembler.flush();
+  ASSERT_TRUE(command_sent);
+  ASSERT_EQ(released.size(), stamps.size() + 1);
+  for (std::size_t i = 1; i < released.size(); ++i) {
+    ASSERT_LE(released[i - 1].first, released[i].first) << i;
+  }
+  const auto command =
+      std::find(released.begin(), released.end(), std::make_pair(stamps[500], 'c'));
+  ASSERT_NE(command, released.end());
+  EXPECT_EQ(*(command + 1), std::make_pair(stamps[500], 's'));  // the command first
+  EXPECT_EQ(assembler.counters().dropped_late, 0u);
+}

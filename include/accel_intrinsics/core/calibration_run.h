@@ -63,6 +63,10 @@ struct RunOptions {
   std::uint32_t max_retries = 2;            // retries of one position before aborting
   bool record_moves = false;                // keep the samples around the moves (timing lag)
   double request_retry_s = 0.5;             // ask an unreachable controller again after this
+  // A run restored from a checkpoint whose controller reports IDLE (the stand PC restarted: all
+  // its nodes are fresh) is continued from the checkpoint after the grace period, as after DONE.
+  // Off by default: the gimbal then moves without anybody's start (a lab's unattended stand).
+  bool resume_idle_controller = false;
   // Added to every IMU stamp (a device clock offset from the gimbal's; DESIGN.md section 5).
   double imu_time_offset_s = 0.0;
   // Before fitting, check that IMU and gimbal stamp on one clock (core/clock_check.h); a run on

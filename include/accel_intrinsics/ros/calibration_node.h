@@ -13,11 +13,13 @@
 
 #include <diagnostic_msgs/DiagnosticStatus.h>
 #include <diagnostic_updater/diagnostic_updater.h>
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/Temperature.h>
 #include <std_srvs/Trigger.h>
 
+#include <atomic>
 #include <condition_variable>
 #include <memory>
 #include <mutex>
@@ -58,6 +60,10 @@ struct CalibrationOptions {
   std::string frame_id = "dut";   // frame of the result header
   bool immediate_imu = true;      // handle IMU messages in the network thread
   double imu_coalesce_s = 0.001;  // nap of the network thread woken from idle, s
+  // Without immediate_imu: the IMU messages go to a queue of the node's own, served by a thread
+  // of its own that handles every imu_batch_s what came meanwhile (the nodelet's default: one
+  // wake-up per period, never in the publisher's thread); 0: the node handle's queue.
+  double imu_batch_s = 0.005;
   bool resume = false;            // reload the checkpoint of output_dir at start
   std::string gimbal_controller = "gimbal_controller";  // the controller's node name (relative)
   // After DONE, wall time without a message or clock tick after which the run is fitted although
@@ -133,6 +139,7 @@ class CalibrationNode {
     ros::Time stamp;
   };
   void fit_loop();
+  void serve_imu_queue();  // the IMU thread (immediate_imu false, imu_coalesce_s > 0)
 
   ros::NodeHandle nh_, pnh_;
   CalibrationOptions options_;
@@ -140,6 +147,9 @@ class CalibrationNode {
   // (immediate_imu) while commands, the timer and the services run on the spinner thread.
   mutable std::recursive_mutex mutex_;
   ImmediateCallbackQueue immediate_queue_;
+  std::unique_ptr<ros::CallbackQueue> imu_queue_;  // the IMU thread's queue, when it has one
+  std::thread imu_thread_;
+  std::atomic<bool> serving_imu_{false};
   core::CalibrationRun run_;
   io::CheckpointFiles files_;
   ros::Subscriber command_sub_, imu_sub_, progress_sub_, temperature_sub_;
