@@ -61,8 +61,11 @@ echo
 echo "[demo] the demo run's dwells without the gimbal's angles, compared with the gimbal fit"
 rosrun accel_intrinsics offline_fit --bag "$demo_dir/run.bag" --unknown-orientations \
   --json "$demo_dir/offline_unknown_orientations.json" > "$demo_dir/offline_unknown_orientations.txt"
-rosrun accel_intrinsics compare_results "$demo_dir/offline.json" \
-  "$demo_dir/offline_unknown_orientations.json" || true
+# Exit 1 means "they disagree", a finding; 2 is a failure of the tool.
+compare_status=0
+rosrun accel_intrinsics compare_results --type-a-only "$demo_dir/offline.json" \
+  "$demo_dir/offline_unknown_orientations.json" || compare_status=$?
+[ "$compare_status" -le 1 ] || { echo "[demo] compare_results failed (exit $compare_status)" >&2; exit 1; }
 echo
 echo "[demo] done. Files in $demo_dir:"
 ls -1 "$demo_dir" "$demo_dir/stand" 2>/dev/null | sed 's/^/  /'

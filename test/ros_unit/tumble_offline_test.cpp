@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <iostream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -19,6 +20,7 @@
 #include "accel_intrinsics/core/samples_file.h"
 #include "accel_intrinsics/core/simulator.h"
 #include "accel_intrinsics/core/tumble_simulator.h"
+#include "accel_intrinsics/ros/compare_results.h"
 #include "accel_intrinsics/ros/offline_fit.h"
 
 namespace accel_intrinsics {
@@ -193,6 +195,69 @@ TEST(TumbleOffline, UnknownOrientationsOnAGimbalTableAgreesWithTheGimbalFit) {
   // The tumble's S is lower-triangular (sensor frame), the gimbal's is not.
   EXPECT_EQ(t["vectors"]["u"][1].get<double>(), 0.0);
   EXPECT_NE(g["vectors"]["u"][1].get<double>(), 0.0);
+}
+
+// README "Gimbal angle error or device property?": a gimbal whose x encoder reads 0.5 % short
+// biases the fit with angles; the same dwells without angles still give the true intrinsics, and
+// compare_results says the two disagree.
+TEST(TumbleOffline, GimbalAngleScaleErrorShowsOnlyInTheFitWithAngles) {
+  TempDir dir;
+  core::SimulationOptions sim;
+  sim.truth.S << 1.01, 0.004, -0.002, 0.003, 0.99, 0.006, -0.001, 0.002, 1.005;
+  sim.truth.O = Eigen::Vector3d(0.05, -0.03, 0.08);
+  core::Effect scale;
+  scale.kind = core::EffectKind::AngleScale;
+  scale.target = 0;  // phase x
+  scale.value = 0.005;
+  sim.truth.effects.push_back(scale);
+  sim.protocol.steps_per_phase = 24;
+  sim.seed = 11;
+  core::write_position_table_file(dir.file("gimbal.csv"), core::simulate_position_table(sim));
+  OfflineFitArguments gimbal, tumble;
+  gimbal.csv = tumble.csv = dir.file("gimbal.csv");
+  tumble.unknown_orientations = true;
+  gimbal.json_out = dir.file("gimbal.json");
+  tumble.json_out = dir.file("tumble.json");
+  run(gimbal);  // the gate may fail (exit 3): the JSON is written either way
+  ASSERT_EQ(run(tumble).status, 0);
+  const nlohmann::json g = read_json(gimbal.json_out), t = read_json(tumble.json_out);
+
+  // Truth, with the angles in degrees as the JSON has them.
+  const core::Intrinsics truth = core::intrinsics_from_vectors(sim.truth.S);
+  const char* const angles[3] = {"uv", "vw", "wu"};
+  double worst_gimbal_z = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    const double true_deg = truth.angles_rad(i) * 180.0 / M_PI;
+    const double zt = (t["angles_deg"][angles[i]].get<double>() - true_deg) /
+                      t["angles_std_deg"][angles[i]].get<double>();
+    const double zg = (g["angles_deg"][angles[i]].get<double>() - true_deg) /
+                      g["angles_std_deg"][angles[i]].get<double>();
+    EXPECT_LT(std::abs(zt), 4.0) << "tumble fit, theta_" << angles[i];
+    worst_gimbal_z = std::max(worst_gimbal_z, std::abs(zg));
+  }
+  const char* const axes[3] = {"u", "v", "w"};
+  for (int i = 0; i < 3; ++i) {
+    const double zt = (t["responsivity"][axes[i]].get<double>() - truth.responsivity(i)) /
+                      t["responsivity_std"][axes[i]].get<double>();
+    const double zg = (g["responsivity"][axes[i]].get<double>() - truth.responsivity(i)) /
+                      g["responsivity_std"][axes[i]].get<double>();
+    EXPECT_LT(std::abs(zt), 4.0) << "tumble fit, |" << axes[i] << "|";
+    worst_gimbal_z = std::max(worst_gimbal_z, std::abs(zg));
+  }
+  // The fit with angles carries the error: its residuals exceed the noise (its uncertainties,
+  // scaled by the reduced chi-square, then hide much of the bias).
+  EXPECT_GT(g["reduced_chi2"].get<double>(), 3.0);
+  EXPECT_GT(worst_gimbal_z, 1.0) << "the angle-scale error should bias the fit with angles";
+  std::cout << "gimbal fit: worst |z| " << worst_gimbal_z << ", reduced chi2 "
+            << g["reduced_chi2"].get<double>() << "; fit without angles: reduced chi2 "
+            << t["reduced_chi2"].get<double>() << std::endl;
+
+  CompareResultsArguments compare;
+  compare.files = {gimbal.json_out, tumble.json_out};
+  compare.json_out = dir.file("comparison.json");
+  compare.type_a_only = true;  // no budget: U = 2 x the type-A uncertainties
+  std::ostringstream out, err;
+  EXPECT_EQ(run_compare_results(compare, out, err), kCompareInconsistent) << out.str() << err.str();
 }
 
 // Everything downstream takes a tumble result: a budget of g alone (the gimbal sources refused,
