@@ -665,6 +665,17 @@ TEST(OfflineFit, SettleDiscardDropsTheFirstSecondsOfEachDwell) {
   EXPECT_EQ(j["input"]["dropped_settle_discard"].get<std::uint64_t>(), 3u * run.dwells.size());
   EXPECT_EQ(j["input"]["dropped_outside_dwell"].get<std::uint64_t>(), run.dropped_outside);
 
+  // The built binary, as a shell sees it: exit status 3 (the number, not the enum), the result
+  // file written, the export asked for not.
+  const ToolRun bin = run_binary({"--bag", dir.file("run.bag"), "--settle-discard", "0.25",
+                                  "--json", dir.file("bin.json"), "--export",
+                                  "px4=" + dir.file("bin_px4.params")},
+                                 dir);
+  EXPECT_EQ(bin.status, 3) << bin.err;
+  EXPECT_FALSE(load_json(dir.file("bin.json"))["quality"]["pass"].get<bool>());
+  EXPECT_FALSE(file_exists(dir.file("bin_px4.params"))) << bin.err;
+  EXPECT_NE(bin.err.find("has 2 samples, fewer than 3"), std::string::npos) << bin.err;
+
   // 0 (the default, spelled out) is the old behaviour: all five samples.
   const ToolRun zero = run_tool(
       {"--bag", dir.file("run.bag"), "--settle-discard", "0", "--json", dir.file("zero.json")},
