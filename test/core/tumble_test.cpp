@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <cstdlib>
@@ -308,6 +309,23 @@ TEST(TumbleAnalysis, BaseFormAgreesWithTheTumbleFit) {
   EXPECT_EQ(a.dof, b.dof);
 }
 
+// Holm's step-down written out: at every step the candidates in ascending p, the k-th (from 0)
+// times (m - k), capped at 1, running maximum.
+void expect_holm_by_hand(const TumbleAnalysis& a) {
+  for (const std::vector<TumbleEffectTest>& step : a.steps) {
+    std::vector<double> p;
+    for (const TumbleEffectTest& t : step) p.push_back(t.p_raw);
+    std::vector<std::size_t> order(p.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return p[x] < p[y]; });
+    double running = 0.0;
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      running = std::max(running, std::min(1.0, static_cast<double>(p.size() - k) * p[order[k]]));
+      EXPECT_NEAR(step[order[k]].p_holm, running, 1e-12 * running) << step[order[k]].effect.label();
+    }
+  }
+}
+
 TEST(TumbleAnalysis, HiddenNonLinearityAndDriftAreNamedAndRecovered) {
   // K2 of 2e-4 /(m/s^2): 0.02 m/s^2 at 1 g, about 20 standard errors of a rest mean.
   const std::vector<std::pair<Effect, double>> cases = {
@@ -317,6 +335,7 @@ TEST(TumbleAnalysis, HiddenNonLinearityAndDriftAreNamedAndRecovered) {
     const TumbleRecording rec = analysis_tumble(3, {c.first});
     const PositionTable t = table_of(detect_rests(rec.samples));
     const TumbleAnalysis a = analyze_tumble(t);
+    expect_holm_by_hand(a);
     ASSERT_FALSE(a.named.empty()) << c.first.label();
     EXPECT_EQ(a.named.front().effect.label(), c.first.label());
     EXPECT_NEAR(a.after.effects[0].value, c.first.value,
