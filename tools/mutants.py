@@ -188,7 +188,10 @@ def main():
         sys.exit(1 if errors else 0)
 
     scratch = os.environ["MUTANTS_DIR"]
-    source = os.path.join(scratch, "source")
+    # The copy is named as the checkout, beside the workspace as the checkout is beside its
+    # own: the compiler then sees the same relative paths, and ccache (CCACHE_BASEDIR a common
+    # parent) serves the unmutated objects of the main workspace.
+    source = os.path.join(scratch, os.path.basename(REPO))
     ws = os.path.join(scratch, "ws")
     logs = os.path.join(scratch, "logs")
     os.makedirs(logs, exist_ok=True)

@@ -8,7 +8,8 @@
 # Usage: bash tools/mutants.sh [--check] [--only NAME[,NAME...]] [--list FILE] [--skip-baseline]
 #   --check   only check the list (every pattern once in its file), no build: seconds
 #   --only    a batch: these mutations only (the whole list takes about an hour on 2 cores)
-# Environment: MUTANTS_DIR (default ${ACCEL_WS}_mutants: source/ the copy, ws/ its workspace,
+# Environment: MUTANTS_DIR (default ${ACCEL_WS}_mutants: the copy in a directory named as this
+# checkout, ws/ its workspace,
 # logs/ a log per mutation, mutants_table.md the table), MUTANTS_TEST_TIMEOUT (s per test spec,
 # default 900), ACCEL_BUILD_LOCK / ACCEL_ROSTEST_LOCK (a file to flock around each build / each
 # rostest, for machines shared by several builds). The copy keeps unchanged files' times, so a
