@@ -12,6 +12,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "accel_intrinsics/core/tumble_session.h"
 #include "../support/statistical_bounds.h"
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/rest_detection.h"
@@ -81,6 +82,71 @@ TEST(Tumble, NoiseFreeRestsGiveTheIntrinsicsExactly) {
   // G = S S^T is the mounting-free part of S.
   EXPECT_LT((r.S * r.S.transpose() - o.truth.S * o.truth.S.transpose()).norm(), 1e-9);
   EXPECT_TRUE(tumble_coverage(r, table_of(found)).complete());
+}
+
+// The live session (tumble_session.h) on a simulated tumble fed sample by sample: the rests as
+// the offline detection finds them, one at a time; before the first fit the pose asked for next
+// is the fixed sequence written out here (each axis up and down, then the corners, unit vectors);
+// once fitted the same intrinsics as the offline tumble fit.
+TEST(TumbleSession, RestsOneAtATimeTheStartingPosesThenTheFit) {
+  TumbleSimulationOptions o;
+  o.truth = random_tumble_device(5);
+  o.seed = 21;
+  const TumbleRecording rec = simulate_hand_tumble(o);
+  const RestDetection found = detect_rests(rec.samples);
+  ASSERT_GE(found.rests.size(), 12u);
+  TumbleSessionOptions so;
+  TumbleSession session(so);
+  const double c = 1.0 / std::sqrt(3.0);
+  const Eigen::Vector3d expected_poses[] = {
+      {0, 0, 1},  {0, 0, -1},  {1, 0, 0},   {-1, 0, 0},  {0, 1, 0},  {0, -1, 0},
+      {c, c, c},  {-c, -c, c}, {c, -c, -c}, {-c, c, -c}, {c, -c, c}, {-c, c, c}};
+  EXPECT_EQ(session.progress().rests, 0u);
+  EXPECT_TRUE(session.progress().next_up.isApprox(expected_poses[0], 1e-15));
+  std::size_t last = 0;
+  for (const ImuSample& sample : rec.samples) {
+    if (!session.add_sample(sample.stamp_s, sample.outputs)) continue;
+    const TumbleProgress& p = session.progress();
+    EXPECT_EQ(p.rests, last + 1) << "one rest at a time";
+    last = p.rests;
+    if (p.rests < so.min_rests) {
+      EXPECT_FALSE(p.fitted);
+      EXPECT_NEAR(p.next_up.norm(), 1.0, 1e-12) << p.rests;
+      EXPECT_TRUE(p.next_up.isApprox(expected_poses[p.rests % 12], 1e-12)) << p.rests;
+    }
+  }
+  session.finish();
+  const TumbleProgress& p = session.progress();
+  EXPECT_EQ(p.rests, found.rests.size());
+  ASSERT_TRUE(p.fitted) << p.fit_error;
+  EXPECT_EQ(p.samples, rec.samples.size());
+  const FitResult offline = fit(table_of(found));
+  const FitResult live = fit(session.table());
+  EXPECT_LT((estimate_of(live) - estimate_of(offline)).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_NEAR(p.next_up.norm(), 1.0, 1e-9);
+}
+
+// The simulator's noise_density is the one-sided density, as the gimbal simulator's: the sample
+// std is noise_density * sqrt(rate / 2) (times noise_scale per axis), seen in the pooled std of
+// the rests it makes (thousands of samples: 3 %).
+TEST(TumbleSimulator, SampleStdIsTheOneSidedDensity) {
+  TumbleSimulationOptions o;
+  o.truth = random_tumble_device(8);
+  o.seed = 33;
+  o.noise_scale = Eigen::Vector3d(1.0, 2.0, 0.5);
+  const TumbleRecording rec = simulate_hand_tumble(o);
+  const RestDetection found = detect_rests(rec.samples);
+  ASSERT_GE(found.rests.size(), 10u);
+  Eigen::Vector3d sum_sq = Eigen::Vector3d::Zero();
+  double dof = 0.0;
+  for (const DwellRecord& r : found.rests) {
+    sum_sq += static_cast<double>(r.n - 1) * r.std.cwiseAbs2();
+    dof += static_cast<double>(r.n - 1);
+  }
+  for (int a = 0; a < 3; ++a) {
+    const double expected = o.noise_scale(a) * o.noise_density * std::sqrt(o.rate_hz / 2.0);
+    EXPECT_NEAR(std::sqrt(sum_sq(a) / dof), expected, 0.03 * expected) << a;
+  }
 }
 
 TEST(Tumble, RestsFoundMatchTheTrueRests) {
