@@ -198,6 +198,13 @@ TEST(Discrepancy, HolmAdjustedPValuesAsComputedByHand) {
     }
   }
   EXPECT_GT(sensitive, 0) << "no candidate where Holm and Bonferroni differ: the check is blind";
+  // The gaps' degrees of freedom: 3 N residuals minus the 12 of S and O and one per effect, and
+  // the chi-square of the gap is the fit's.
+  const int residuals = 3 * static_cast<int>(a.before_fit.residuals.size());
+  EXPECT_EQ(a.before.summary.dof, residuals - 12);
+  EXPECT_EQ(a.after.summary.dof, residuals - 12 - static_cast<int>(a.after_fit.effects.size()));
+  EXPECT_NEAR(a.before.summary.reduced_chi2, a.before.summary.chi2 / (residuals - 12),
+              1e-12 * a.before.summary.reduced_chi2);
 }
 
 TEST(Discrepancy, OneWayAngleOffsetIsAmbiguousWithBacklash) {
