@@ -129,6 +129,36 @@ TEST(TumbleSession, RestsOneAtATimeTheStartingPosesThenTheFit) {
 // The simulator's noise_density is the one-sided density, as the gimbal simulator's: the sample
 // std is noise_density * sqrt(rate / 2) (times noise_scale per axis), seen in the pooled std of
 // the rests it makes (thousands of samples: 3 %).
+// The residuals and their RMS on an inexact (noisy) tumble, computed here: each rest mean minus
+// its projection on the fitted ellipsoid, m - (S g a_hat + O) with a = P (m - O); RMS over the
+// 3 N components. The effect-term form's RMS over its own residuals, also over 3 N.
+TEST(Tumble, ResidualsAndTheirRmsOverThreeN) {
+  TumbleSimulationOptions o;
+  o.truth = random_tumble_device(4);
+  o.seed = 17;
+  const TumbleRecording rec = simulate_hand_tumble(o);
+  const PositionTable t = table_of(detect_rests(rec.samples));
+  const FitResult r = fit(t);
+  ASSERT_EQ(r.residuals.size(), t.rows.size());
+  const Eigen::Matrix3d P = r.S.inverse();
+  double sum_sq = 0.0;
+  for (std::size_t i = 0; i < t.rows.size(); ++i) {
+    const Eigen::Vector3d a = P * (t.rows[i].mean - r.O);
+    const Eigen::Vector3d residual = t.rows[i].mean - (r.S * (r.local_gravity * a.normalized()) + r.O);
+    EXPECT_LT((r.residuals[i] - residual).norm(), 1e-9) << i;
+    sum_sq += residual.squaredNorm();
+  }
+  const double rms = std::sqrt(sum_sq / (3.0 * static_cast<double>(t.rows.size())));
+  EXPECT_GT(rms, 1e-5);
+  EXPECT_NEAR(r.residual_rms, rms, 1e-9 * rms);
+  const FitResult e = fit_tumble_with_effects(t, {}, r.local_gravity);
+  double sum_e = 0.0;
+  for (const Eigen::Vector3d& v : e.residuals) sum_e += v.squaredNorm();
+  const double rms_e = std::sqrt(sum_e / (3.0 * static_cast<double>(e.residuals.size())));
+  EXPECT_NEAR(e.residual_rms, rms_e, 1e-9 * rms_e);
+  EXPECT_NEAR(e.residual_rms / r.residual_rms, 1.0, 0.2);  // both forms see the same scatter
+}
+
 TEST(TumbleSimulator, SampleStdIsTheOneSidedDensity) {
   TumbleSimulationOptions o;
   o.truth = random_tumble_device(8);
