@@ -159,6 +159,41 @@ TEST(Tumble, ResidualsAndTheirRmsOverThreeN) {
   EXPECT_NEAR(e.residual_rms / r.residual_rms, 1.0, 0.2);  // both forms see the same scatter
 }
 
+// Each rest's statistics written out: the samples from its first to its last stamp, their mean
+// and sample standard deviation (n - 1). (A rest joined across a short disturbance leaves the
+// disturbance out: those are skipped, and most rests are plain.)
+TEST(RestDetection, RestMeanAndStdAreThoseOfItsSamples) {
+  TumbleSimulationOptions o;
+  o.truth = random_tumble_device(9);
+  o.seed = 41;
+  const TumbleRecording rec = simulate_hand_tumble(o);
+  const RestDetection found = detect_rests(rec.samples);
+  int checked = 0;
+  for (const DwellRecord& r : found.rests) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), sum_sq = Eigen::Vector3d::Zero();
+    std::uint64_t n = 0;
+    for (const ImuSample& s : rec.samples) {
+      if (s.stamp_s < r.t_start_s || s.stamp_s > r.t_end_s) continue;
+      sum += s.outputs;
+      ++n;
+    }
+    if (n != r.n) continue;
+    const Eigen::Vector3d mean = sum / static_cast<double>(n);
+    for (const ImuSample& s : rec.samples) {
+      if (s.stamp_s < r.t_start_s || s.stamp_s > r.t_end_s) continue;
+      sum_sq += (s.outputs - mean).cwiseAbs2();
+    }
+    const Eigen::Vector3d std_dev = (sum_sq / static_cast<double>(n - 1)).cwiseSqrt();
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(r.mean(k), mean(k), 1e-9) << "rest at " << r.t_start_s;
+      EXPECT_NEAR(r.std(k), std_dev(k), 1e-9 * std_dev(k)) << "rest at " << r.t_start_s;
+    }
+    ++checked;
+  }
+  EXPECT_GE(checked, static_cast<int>(found.rests.size()) / 2);
+  EXPECT_GE(checked, 5);
+}
+
 TEST(TumbleSimulator, SampleStdIsTheOneSidedDensity) {
   TumbleSimulationOptions o;
   o.truth = random_tumble_device(8);
