@@ -330,6 +330,18 @@ TEST_F(CalibrationNodeTest, AResultFailingTheQualityGateIsNoCalibration) {
     }
   }
   command(t, 2, steps_, ai::GimbalCommand::DONE);
+  // The commands arrive in order on their topic: once the node says DONE was received, every
+  // command of the run is in (the samples went out before them). Waited for, not slept.
+  {
+    const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(60.0);
+    std::string message;
+    while (ros::WallTime::now() < deadline) {
+      message = call_get().message;
+      if (message.find("DONE received") != std::string::npos) break;
+      ros::WallDuration(0.05).sleep();
+    }
+    ASSERT_NE(message.find("DONE received"), std::string::npos) << message;
+  }
   // Past DONE + reorder window: the node flushes and fits. Wait for the fit's answer (the
   // service names what is missing until then), with a generous bound.
   set_clock(t + 60.0 + 1.0);
