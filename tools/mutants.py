@@ -4,6 +4,7 @@ to a scratch copy of the repository with its own catkin workspace, built increme
 tests each names run; a mutation is "caught" when they fail and "SURVIVED" when they pass.
 Run it through tools/mutants.sh (which sets up the environment); see the README."""
 import argparse
+import fcntl
 import os
 import shlex
 import shutil
@@ -106,6 +107,38 @@ def with_lock(env_name, command):
     return ["flock", lock] + command if lock else command
 
 
+class BuildLock:
+    """ACCEL_BUILD_LOCK held across several mutations (each a build and a short test run), at
+    most MUTANTS_LOCK_HOLD_S seconds at a time (default 600), then released for the others: one
+    flock per mutation would wait behind every other build on a busy machine."""
+
+    def __init__(self):
+        self.path = os.environ.get("ACCEL_BUILD_LOCK", "")
+        self.hold_s = float(os.environ.get("MUTANTS_LOCK_HOLD_S", "600"))
+        self.fd = None
+        self.since = 0.0
+
+    def acquire(self):
+        if not self.path or self.fd is not None:
+            return
+        self.fd = open(self.path, "a")
+        fcntl.flock(self.fd, fcntl.LOCK_EX)
+        self.since = time.time()
+
+    def release(self):
+        if self.fd is not None:
+            fcntl.flock(self.fd, fcntl.LOCK_UN)
+            self.fd.close()
+            self.fd = None
+
+    def turn(self):
+        """Between mutations: let the others build once the hold time is used up."""
+        if self.fd is not None and time.time() - self.since > self.hold_s:
+            self.release()
+            time.sleep(2.0)
+        self.acquire()
+
+
 def targets_for(specs, source):
     targets = set()
     for kind, arg in specs:
@@ -121,9 +154,9 @@ def targets_for(specs, source):
 
 
 def build(ws, source, targets, log):
+    """Builds with ACCEL_BUILD_LOCK held by the caller (BuildLock)."""
     env = dict(os.environ, ACCEL_WS=ws)
-    command = with_lock("ACCEL_BUILD_LOCK",
-                        ["nice", "bash", os.path.join(source, "tools", "build.sh")] + targets)
+    command = ["nice", "bash", os.path.join(source, "tools", "build.sh")] + targets
     with open(log, "w") as out:
         return subprocess.run(command, env=env, stdout=out, stderr=subprocess.STDOUT).returncode == 0
 
@@ -201,8 +234,12 @@ def main():
           % (source, changed, ws, logs), flush=True)
 
     all_specs = sorted(set(s for m in mutations for s in m.tests))
-    all_targets = targets_for(all_specs, source)
+    # MUTANTS_EXTRA_TARGETS: more targets for the unmutated build (e.g. to run other tests there).
+    all_targets = sorted(set(targets_for(all_specs, source))
+                         | set(os.environ.get("MUTANTS_EXTRA_TARGETS", "").split()))
     print("[mutants] building %s unmutated ..." % " ".join(all_targets), flush=True)
+    lock = BuildLock()
+    lock.acquire()
     if not build(ws, source, all_targets, os.path.join(logs, "baseline.build.log")):
         print("[mutants] the unmutated build failed: %s" % os.path.join(logs, "baseline.build.log"))
         sys.exit(2)
@@ -220,6 +257,7 @@ def main():
 
     rows = []
     for index, m in enumerate(mutations, 1):
+        lock.turn()
         start = time.time()
         path = os.path.join(source, m.path)
         with open(path) as f:
@@ -255,7 +293,9 @@ def main():
         print("[mutants] %d/%d %s: %s by %s (%.0f s)" % (index, len(mutations), m.name, result,
                                                       caught_by, time.time() - start), flush=True)
     # Leave the workspace built from the unmutated source.
+    lock.turn()
     build(ws, source, all_targets, os.path.join(logs, "restore.build.log"))
+    lock.release()
 
     table = ["| mutation | file | result | caught by |", "|---|---|---|---|"]
     for m, result, caught_by in rows:

@@ -11,8 +11,9 @@
 # Environment: MUTANTS_DIR (default ${ACCEL_WS}_mutants: the copy in a directory named as this
 # checkout, ws/ its workspace,
 # logs/ a log per mutation, mutants_table.md the table), MUTANTS_TEST_TIMEOUT (s per test spec,
-# default 900), ACCEL_BUILD_LOCK / ACCEL_ROSTEST_LOCK (a file to flock around each build / each
-# rostest, for machines shared by several builds). The copy keeps unchanged files' times, so a
+# default 900), ACCEL_BUILD_LOCK (a file flocked while building: held across mutations for at
+# most MUTANTS_LOCK_HOLD_S s, default 600, then released for other builds on a shared machine),
+# ACCEL_ROSTEST_LOCK (flocked around each rostest). The copy keeps unchanged files' times, so a
 # second run rebuilds only the mutated files; with ccache (ACCEL_CMAKE_ARGS) and CCACHE_BASEDIR
 # a common parent of both workspaces, the first build reuses the main workspace's objects.
 # Ends with "N caught, N survived, N list errors or builds that failed"; exit status 0 only when
