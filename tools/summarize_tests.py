@@ -1,6 +1,9 @@
 #!/usr/bin/env python3
-"""Counts test cases in the JUnit XML files that catkin writes, prints failures and one
-closing line "N passed, N failed". Exit status 1 when anything failed or nothing ran."""
+"""Counts test cases in the JUnit XML files that catkin writes, prints failures, skipped cases
+(one "SKIPPED name (file): reason" line each and a line "N skipped", only when there are any) and
+one closing line "N passed, N failed" (exactly that: .ci/run, tools/sanitize.sh and tools/tsan.sh
+read it). A skipped case counts as neither passed nor failed. Exit status 1 when anything failed
+or nothing ran."""
 import glob
 import os
 import sys
@@ -9,7 +12,7 @@ import xml.etree.ElementTree as ET
 
 def main():
     root = sys.argv[1]
-    passed, failed, failures = 0, 0, []
+    passed, failed, failures, skipped = 0, 0, [], []
     files = sorted(glob.glob(os.path.join(root, "**", "*.xml"), recursive=True))
     names = set(os.path.basename(f) for f in files)
     for path in files:
@@ -36,9 +39,18 @@ def main():
             continue
         for case in tree.iter("testcase"):
             bad = case.find("failure") is not None or case.find("error") is not None
-            if case.find("skipped") is not None:
-                continue
             name = "%s.%s" % (case.get("classname", "?"), case.get("name", "?"))
+            skip = case.find("skipped")
+            # gtest marks GTEST_SKIP() cases result="skipped" (with or without a <skipped>
+            # element) and disabled ones status="notrun".
+            if skip is None and (case.get("result") in ("skipped", "suppressed")
+                                 or case.get("status") == "notrun"):
+                skip = case
+            if skip is not None and not bad:
+                reason = (skip.get("message") or skip.text or "").strip().splitlines()
+                skipped.append("%s (%s)%s" % (name, os.path.basename(path),
+                                              ": " + reason[0] if reason else ""))
+                continue
             if bad:
                 failed += 1
                 node = case.find("failure")
@@ -51,6 +63,10 @@ def main():
                 passed += 1
     for line in failures:
         print("FAILED " + line)
+    for line in skipped:
+        print("SKIPPED " + line)
+    if skipped:
+        print("%d skipped" % len(skipped))
     if not files:
         print("no test result files under %s" % root)
     print("%d passed, %d failed" % (passed, failed))

@@ -512,9 +512,18 @@ void CalibrationNode::publish_status(const ros::Time& now) {
   last_status_ = now;
   const core::RunStatus st = run_.status(now.toSec());
   last_state_ = st.state;
-  status_pub_.publish(to_status_msg(
-      st, run_.has_result() ? "result available" : run_.missing_message(),
-      run_.has_result() ? result_.model : "", now.toSec(), nh_.resolveName("calibration")));
+  // A result that fails the quality gate is there to look at but is no calibration: say so.
+  const std::string message =
+      !run_.has_result() ? run_.missing_message()
+      : result_.quality_pass
+          ? std::string("result available")
+          : "result fails the quality gate: " +
+                core::Quality{false, result_.quality_reasons}.summary();
+  diagnostic_msgs::DiagnosticStatus msg = to_status_msg(
+      st, message,
+      run_.has_result() ? result_.model : "", now.toSec(), nh_.resolveName("calibration"));
+  if (run_.has_result() && !result_.quality_pass) msg.level = diagnostic_msgs::DiagnosticStatus::ERROR;
+  status_pub_.publish(msg);
 }
 
 void CalibrationNode::diagnose_imu(diagnostic_updater::DiagnosticStatusWrapper& status) {
@@ -564,8 +573,14 @@ void CalibrationNode::diagnose_run(diagnostic_updater::DiagnosticStatusWrapper& 
                          (st.last_fault.empty() ? std::string() : " (" + st.last_fault + ")"));
       break;
     case core::RunState::Done:
-      status.summary(diagnostic_msgs::DiagnosticStatus::OK,
-                     "result available (" + result_.model + ")");
+      if (result_.quality_pass) {
+        status.summary(diagnostic_msgs::DiagnosticStatus::OK,
+                       "result available (" + result_.model + ")");
+      } else {
+        status.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                       "the result fails the quality gate: " +
+                           core::Quality{false, result_.quality_reasons}.summary());
+      }
       break;
     default: status.summary(diagnostic_msgs::DiagnosticStatus::OK, "collecting");
   }

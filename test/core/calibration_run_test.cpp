@@ -332,6 +332,34 @@ TEST(CalibrationRun, TooFewSamplesAreMeasuredAgainOnRetry) {
   EXPECT_NE(s.last_fault.find("fewer than min_samples_per_dwell = 20"), std::string::npos);
 }
 
+// The minimum is inclusive: a dwell with exactly min_samples_per_dwell samples is accepted, one
+// with one fewer is not.
+TEST(CalibrationRun, MinSamplesPerDwellIsInclusive) {
+  std::uint64_t fewest = 0;
+  {
+    FakeStand stand;
+    CalibrationRun run(options_for(4));
+    stand.play(&run);
+    ASSERT_EQ(run.state(), RunState::Done);
+    ASSERT_EQ(stand.fitted_.size(), 1u);
+    fewest = stand.fitted_[0].rows.front().n;
+    for (const DwellRecord& r : stand.fitted_[0].rows) fewest = std::min(fewest, r.n);
+    ASSERT_GT(fewest, 2u);
+  }
+  FakeStand stand;
+  RunOptions o = options_for(4);
+  o.min_samples_per_dwell = fewest;
+  CalibrationRun run(o);
+  stand.play(&run);
+  EXPECT_EQ(run.state(), RunState::Done) << "a dwell of exactly the minimum was refused";
+  EXPECT_TRUE(stand.aborts_.empty());
+  FakeStand short_stand;
+  o.min_samples_per_dwell = fewest + 1;
+  CalibrationRun short_run(o);
+  short_stand.play(&short_run);
+  EXPECT_EQ(short_run.state(), RunState::Aborted);
+}
+
 TEST(CalibrationRun, TooFewSamplesAbortWithoutRetry) {
   FakeStand stand;
   const auto bad = stand.dwell_interval(Phase::X, 1);

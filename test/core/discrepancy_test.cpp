@@ -160,6 +160,53 @@ TEST(Discrepancy, TwoHiddenEffectsAreBothNamed) {
   }
 }
 
+// p_raw and p_holm of every identifiable candidate at every step, computed here: p_raw =
+// P(chi2(1) >= T) = erfc(sqrt(T / 2)); Holm's step-down over the m identifiable candidates in
+// ascending p: the k-th (from 0) times (m - k), capped at 1, running maximum. Two hidden effects
+// make two small p-values at the first step, where Holm (m - 1) and Bonferroni (m) differ.
+TEST(Discrepancy, HolmAdjustedPValuesAsComputedByHand) {
+  SimulationOptions so = random_simulation(4242);
+  const double t_quad = detection_threshold(so, EffectKind::QuadraticNonlinearity, 0);
+  const double t_off = detection_threshold(so, EffectKind::AngleOffset, 2);
+  so.truth.effects = {Effect{EffectKind::QuadraticNonlinearity, 0, 3.0 * t_quad},
+                      Effect{EffectKind::AngleOffset, 2, 3.0 * t_off}};
+  const AnalysisResult a = analyze(simulate_position_table(so));
+  SCOPED_TRACE(describe(a));
+  ASSERT_FALSE(a.steps.empty());
+  int sensitive = 0;  // candidates past the first where Holm and Bonferroni differ
+  for (const ScreeningStep& step : a.steps) {
+    std::vector<const CandidateScore*> ident;
+    for (const CandidateScore& c : step.candidates) {
+      if (!c.identifiable) continue;
+      EXPECT_NEAR(c.p_raw, std::erfc(std::sqrt(c.score_chi2 / 2.0)),
+                  1e-9 * c.p_raw + 1e-300) << c.effect.label();
+      ident.push_back(&c);
+    }
+    std::vector<const CandidateScore*> sorted = ident;
+    std::stable_sort(sorted.begin(), sorted.end(),
+                     [](const CandidateScore* x, const CandidateScore* y) { return x->p_raw < y->p_raw; });
+    const double m = static_cast<double>(sorted.size());
+    double running = 0.0;
+    for (std::size_t k = 0; k < sorted.size(); ++k) {
+      const double holm = std::min(1.0, (m - static_cast<double>(k)) * sorted[k]->p_raw);
+      running = std::max(running, holm);
+      EXPECT_NEAR(sorted[k]->p_holm, running, 1e-12 * running) << sorted[k]->effect.label() << " k " << k;
+      if (k > 0 && m * sorted[k]->p_raw < 1.0 && holm >= running &&
+          sorted[k]->p_raw > 1e-280) {
+        ++sensitive;
+      }
+    }
+  }
+  EXPECT_GT(sensitive, 0) << "no candidate where Holm and Bonferroni differ: the check is blind";
+  // The gaps' degrees of freedom: 3 N residuals minus the 12 of S and O and one per effect, and
+  // the chi-square of the gap is the fit's.
+  const int residuals = 3 * static_cast<int>(a.before_fit.residuals.size());
+  EXPECT_EQ(a.before.summary.dof, residuals - 12);
+  EXPECT_EQ(a.after.summary.dof, residuals - 12 - static_cast<int>(a.after_fit.effects.size()));
+  EXPECT_NEAR(a.before.summary.reduced_chi2, a.before.summary.chi2 / (residuals - 12),
+              1e-12 * a.before.summary.reduced_chi2);
+}
+
 TEST(Discrepancy, OneWayAngleOffsetIsAmbiguousWithBacklash) {
   SimulationOptions so = random_simulation(4242);
   const double t = detection_threshold(so, EffectKind::AngleOffset, 1);

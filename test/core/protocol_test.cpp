@@ -216,6 +216,23 @@ TEST(Model, EachEffectTermMatchesItsDefinition) {
   EXPECT_TRUE(r.isApprox(base, 1e-15));
 }
 
+TEST(Model, ValidateRefusesASingularOrNonFiniteDevice) {
+  core::Device device;
+  device.S << 1.01, 0.01, -0.02, 0.005, 0.99, 0.01, 0.02, -0.01, 1.02;
+  device.O << 0.1, -0.2, 0.05;
+  EXPECT_NO_THROW(core::validate(device));
+  core::Device rank2 = device;
+  rank2.S.row(2) = 0.5 * device.S.row(0) + 2.0 * device.S.row(1);  // w in the plane of u and v
+  EXPECT_THROW(core::validate(rank2), std::invalid_argument);
+  core::Device rank1 = device;
+  rank1.S.row(1) = 2.0 * device.S.row(0);
+  rank1.S.row(2) = -device.S.row(0);
+  EXPECT_THROW(core::validate(rank1), std::invalid_argument);
+  core::Device nan_offset = device;
+  nan_offset.O(1) = std::nan("");
+  EXPECT_THROW(core::validate(nan_offset), std::invalid_argument);
+}
+
 TEST(Model, ClosingPositionAngleIsNotWrapped) {
   // At the closing position (commanded 2 pi) an angle-scale error is eps * 2 pi, an angle offset
   // is the same as at 0: the model must never reduce the commanded angle modulo 2 pi.

@@ -230,6 +230,9 @@ TEST(TimingLag, RecoveredWithinItsStdForRandomDevicesRatesAndSeeds) {
         << est.message << " (error " << (est.lag_s - cases[k].lag_s) * 1e3 << " ms)";
     EXPECT_TRUE(est.detected) << est.message;
     EXPECT_LT(est.p_value, 1e-6);
+    // The p-value of the likelihood-ratio chi2(1) statistic, written out: erfc(sqrt(T / 2)).
+    EXPECT_NEAR(est.p_value, std::erfc(std::sqrt(est.lr_chi2 / 2.0)),
+                1e-9 * std::erfc(std::sqrt(est.lr_chi2 / 2.0)) + 1e-300);
     // A wrong profile or time axis would not fit to the noise.
     EXPECT_NEAR(est.reduced_chi2, 1.0, reduced_chi2_tolerance(est)) << est.message;
     const double sigma = sample_noise_std(sim);

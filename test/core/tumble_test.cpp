@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <cstdlib>
@@ -11,6 +12,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "accel_intrinsics/core/tumble_session.h"
 #include "../support/statistical_bounds.h"
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/rest_detection.h"
@@ -80,6 +82,136 @@ TEST(Tumble, NoiseFreeRestsGiveTheIntrinsicsExactly) {
   // G = S S^T is the mounting-free part of S.
   EXPECT_LT((r.S * r.S.transpose() - o.truth.S * o.truth.S.transpose()).norm(), 1e-9);
   EXPECT_TRUE(tumble_coverage(r, table_of(found)).complete());
+}
+
+// The live session (tumble_session.h) on a simulated tumble fed sample by sample: the rests as
+// the offline detection finds them, one at a time; before the first fit the pose asked for next
+// is the fixed sequence written out here (each axis up and down, then the corners, unit vectors);
+// once fitted the same intrinsics as the offline tumble fit.
+TEST(TumbleSession, RestsOneAtATimeTheStartingPosesThenTheFit) {
+  TumbleSimulationOptions o;
+  o.truth = random_tumble_device(5);
+  o.seed = 21;
+  const TumbleRecording rec = simulate_hand_tumble(o);
+  const RestDetection found = detect_rests(rec.samples);
+  ASSERT_GE(found.rests.size(), 12u);
+  TumbleSessionOptions so;
+  TumbleSession session(so);
+  const double c = 1.0 / std::sqrt(3.0);
+  const Eigen::Vector3d expected_poses[] = {
+      {0, 0, 1},  {0, 0, -1},  {1, 0, 0},   {-1, 0, 0},  {0, 1, 0},  {0, -1, 0},
+      {c, c, c},  {-c, -c, c}, {c, -c, -c}, {-c, c, -c}, {c, -c, c}, {-c, c, c}};
+  EXPECT_EQ(session.progress().rests, 0u);
+  EXPECT_TRUE(session.progress().next_up.isApprox(expected_poses[0], 1e-15));
+  std::size_t last = 0;
+  for (const ImuSample& sample : rec.samples) {
+    if (!session.add_sample(sample.stamp_s, sample.outputs)) continue;
+    const TumbleProgress& p = session.progress();
+    EXPECT_EQ(p.rests, last + 1) << "one rest at a time";
+    last = p.rests;
+    if (p.rests < so.min_rests) {
+      EXPECT_FALSE(p.fitted);
+      EXPECT_NEAR(p.next_up.norm(), 1.0, 1e-12) << p.rests;
+      EXPECT_TRUE(p.next_up.isApprox(expected_poses[p.rests % 12], 1e-12)) << p.rests;
+    }
+  }
+  session.finish();
+  const TumbleProgress& p = session.progress();
+  EXPECT_EQ(p.rests, found.rests.size());
+  ASSERT_TRUE(p.fitted) << p.fit_error;
+  EXPECT_EQ(p.samples, rec.samples.size());
+  const FitResult offline = fit(table_of(found));
+  const FitResult live = fit(session.table());
+  EXPECT_LT((estimate_of(live) - estimate_of(offline)).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_NEAR(p.next_up.norm(), 1.0, 1e-9);
+}
+
+// The simulator's noise_density is the one-sided density, as the gimbal simulator's: the sample
+// std is noise_density * sqrt(rate / 2) (times noise_scale per axis), seen in the pooled std of
+// the rests it makes (thousands of samples: 3 %).
+// The residuals and their RMS on an inexact (noisy) tumble, computed here: each rest mean minus
+// its projection on the fitted ellipsoid, m - (S g a_hat + O) with a = P (m - O); RMS over the
+// 3 N components. The effect-term form's RMS over its own residuals, also over 3 N.
+TEST(Tumble, ResidualsAndTheirRmsOverThreeN) {
+  TumbleSimulationOptions o;
+  o.truth = random_tumble_device(4);
+  o.seed = 17;
+  const TumbleRecording rec = simulate_hand_tumble(o);
+  const PositionTable t = table_of(detect_rests(rec.samples));
+  const FitResult r = fit(t);
+  ASSERT_EQ(r.residuals.size(), t.rows.size());
+  const Eigen::Matrix3d P = r.S.inverse();
+  double sum_sq = 0.0;
+  for (std::size_t i = 0; i < t.rows.size(); ++i) {
+    const Eigen::Vector3d a = P * (t.rows[i].mean - r.O);
+    const Eigen::Vector3d residual = t.rows[i].mean - (r.S * (r.local_gravity * a.normalized()) + r.O);
+    EXPECT_LT((r.residuals[i] - residual).norm(), 1e-9) << i;
+    sum_sq += residual.squaredNorm();
+  }
+  const double rms = std::sqrt(sum_sq / (3.0 * static_cast<double>(t.rows.size())));
+  EXPECT_GT(rms, 1e-5);
+  EXPECT_NEAR(r.residual_rms, rms, 1e-9 * rms);
+  const FitResult e = fit_tumble_with_effects(t, {}, r.local_gravity);
+  double sum_e = 0.0;
+  for (const Eigen::Vector3d& v : e.residuals) sum_e += v.squaredNorm();
+  const double rms_e = std::sqrt(sum_e / (3.0 * static_cast<double>(e.residuals.size())));
+  EXPECT_NEAR(e.residual_rms, rms_e, 1e-9 * rms_e);
+  EXPECT_NEAR(e.residual_rms / r.residual_rms, 1.0, 0.2);  // both forms see the same scatter
+}
+
+// Each rest's statistics written out: the samples from its first to its last stamp, their mean
+// and sample standard deviation (n - 1). (A rest joined across a short disturbance leaves the
+// disturbance out: those are skipped, and most rests are plain.)
+TEST(RestDetection, RestMeanAndStdAreThoseOfItsSamples) {
+  TumbleSimulationOptions o;
+  o.truth = random_tumble_device(9);
+  o.seed = 41;
+  const TumbleRecording rec = simulate_hand_tumble(o);
+  const RestDetection found = detect_rests(rec.samples);
+  int checked = 0;
+  for (const DwellRecord& r : found.rests) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), sum_sq = Eigen::Vector3d::Zero();
+    std::uint64_t n = 0;
+    for (const ImuSample& s : rec.samples) {
+      if (s.stamp_s < r.t_start_s || s.stamp_s > r.t_end_s) continue;
+      sum += s.outputs;
+      ++n;
+    }
+    if (n != r.n) continue;
+    const Eigen::Vector3d mean = sum / static_cast<double>(n);
+    for (const ImuSample& s : rec.samples) {
+      if (s.stamp_s < r.t_start_s || s.stamp_s > r.t_end_s) continue;
+      sum_sq += (s.outputs - mean).cwiseAbs2();
+    }
+    const Eigen::Vector3d std_dev = (sum_sq / static_cast<double>(n - 1)).cwiseSqrt();
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(r.mean(k), mean(k), 1e-9) << "rest at " << r.t_start_s;
+      EXPECT_NEAR(r.std(k), std_dev(k), 1e-9 * std_dev(k)) << "rest at " << r.t_start_s;
+    }
+    ++checked;
+  }
+  EXPECT_GE(checked, static_cast<int>(found.rests.size()) / 2);
+  EXPECT_GE(checked, 5);
+}
+
+TEST(TumbleSimulator, SampleStdIsTheOneSidedDensity) {
+  TumbleSimulationOptions o;
+  o.truth = random_tumble_device(8);
+  o.seed = 33;
+  o.noise_scale = Eigen::Vector3d(1.0, 2.0, 0.5);
+  const TumbleRecording rec = simulate_hand_tumble(o);
+  const RestDetection found = detect_rests(rec.samples);
+  ASSERT_GE(found.rests.size(), 10u);
+  Eigen::Vector3d sum_sq = Eigen::Vector3d::Zero();
+  double dof = 0.0;
+  for (const DwellRecord& r : found.rests) {
+    sum_sq += static_cast<double>(r.n - 1) * r.std.cwiseAbs2();
+    dof += static_cast<double>(r.n - 1);
+  }
+  for (int a = 0; a < 3; ++a) {
+    const double expected = o.noise_scale(a) * o.noise_density * std::sqrt(o.rate_hz / 2.0);
+    EXPECT_NEAR(std::sqrt(sum_sq(a) / dof), expected, 0.03 * expected) << a;
+  }
 }
 
 TEST(Tumble, RestsFoundMatchTheTrueRests) {
@@ -308,6 +440,23 @@ TEST(TumbleAnalysis, BaseFormAgreesWithTheTumbleFit) {
   EXPECT_EQ(a.dof, b.dof);
 }
 
+// Holm's step-down written out: at every step the candidates in ascending p, the k-th (from 0)
+// times (m - k), capped at 1, running maximum.
+void expect_holm_by_hand(const TumbleAnalysis& a) {
+  for (const std::vector<TumbleEffectTest>& step : a.steps) {
+    std::vector<double> p;
+    for (const TumbleEffectTest& t : step) p.push_back(t.p_raw);
+    std::vector<std::size_t> order(p.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return p[x] < p[y]; });
+    double running = 0.0;
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      running = std::max(running, std::min(1.0, static_cast<double>(p.size() - k) * p[order[k]]));
+      EXPECT_NEAR(step[order[k]].p_holm, running, 1e-12 * running) << step[order[k]].effect.label();
+    }
+  }
+}
+
 TEST(TumbleAnalysis, HiddenNonLinearityAndDriftAreNamedAndRecovered) {
   // K2 of 2e-4 /(m/s^2): 0.02 m/s^2 at 1 g, about 20 standard errors of a rest mean.
   const std::vector<std::pair<Effect, double>> cases = {
@@ -317,6 +466,7 @@ TEST(TumbleAnalysis, HiddenNonLinearityAndDriftAreNamedAndRecovered) {
     const TumbleRecording rec = analysis_tumble(3, {c.first});
     const PositionTable t = table_of(detect_rests(rec.samples));
     const TumbleAnalysis a = analyze_tumble(t);
+    expect_holm_by_hand(a);
     ASSERT_FALSE(a.named.empty()) << c.first.label();
     EXPECT_EQ(a.named.front().effect.label(), c.first.label());
     EXPECT_NEAR(a.after.effects[0].value, c.first.value,

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <iostream>
 #include <random>
@@ -300,6 +301,143 @@ TEST(UncertaintyBudget, MountMisalignmentRotatesTheDeviceSeenInThatPhase) {
   Rz << c, -s, 0, s, c, 0, 0, 0, 1;
   const Eigen::Vector3d expected = fit.S * (Rz.transpose() * f0) + fit.O;
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(y(3 + k), expected(k), 1e-12);
+}
+
+// ---- axis tilt and mount misalignment versus the test's own Jacobian ---------------------------
+//
+// The rig written out by hand once more: in phase p the rotation axis e_p is raised by tau_p, so
+// the unit specific force is cos(tau_p) f(alpha) + sin(tau_p) e_p; the DUT is mounted rotated by
+// R_p (rotation vector r_p, components on the two axes other than p), so it sees R_p^T of that.
+PositionTable rig_table(const Eigen::Matrix3d& S, const Eigen::Vector3d& O, int steps, double g,
+                        const Eigen::Vector3d& tilt, const Eigen::Matrix3d& mount) {
+  PositionTable t = hand_table(S, O, steps, g);
+  for (DwellRecord& r : t.rows) {
+    const int p = static_cast<int>(index(r.phase));
+    const double a = r.angle_rad;
+    Eigen::Vector3d f(std::sin(a), std::cos(a), 0.0);
+    if (r.phase == Phase::X) f << 0.0, std::sin(a), std::cos(a);
+    if (r.phase == Phase::Y) f << std::sin(a), 0.0, std::cos(a);
+    f = std::cos(tilt(p)) * f + std::sin(tilt(p)) * Eigen::Vector3d::Unit(p);
+    const Eigen::Vector3d rv = mount.col(p);
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    if (rv.norm() > 0.0) R = Eigen::AngleAxisd(rv.norm(), rv / rv.norm()).toRotationMatrix();
+    r.mean = S * (g * (R.transpose() * f)) + O;
+  }
+  return t;
+}
+
+FitResult fit_rig(const FitResult& fit, int steps, const Eigen::Vector3d& tilt,
+                  const Eigen::Matrix3d& mount) {
+  return core::fit(rig_table(fit.S, fit.O, steps, fit.local_gravity, tilt, mount));
+}
+
+// sigma * d(intrinsics)/d(input) summed in quadrature over the source's inputs: the three tilts,
+// or the six mounting components (two per phase), by central differences of core::fit.
+Eigen::Matrix<double, 9, 1> rig_linear_std(const FitResult& fit, int steps, bool tilt_source,
+                                           double sigma) {
+  const double h = 1e-6;
+  Eigen::Matrix<double, 9, 1> var = Eigen::Matrix<double, 9, 1>::Zero();
+  const int inputs = tilt_source ? 3 : 6;
+  for (int k = 0; k < inputs; ++k) {
+    Eigen::Vector3d tilt_up = Eigen::Vector3d::Zero(), tilt_down = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d mount_up = Eigen::Matrix3d::Zero(), mount_down = Eigen::Matrix3d::Zero();
+    if (tilt_source) {
+      tilt_up(k) = h;
+      tilt_down(k) = -h;
+    } else {
+      const int p = k / 2;
+      const int axis = (p + 1 + k % 2) % 3;  // the two axes other than p
+      mount_up(axis, p) = h;
+      mount_down(axis, p) = -h;
+    }
+    const FitResult fu = fit_rig(fit, steps, tilt_up, mount_up);
+    const FitResult fd = fit_rig(fit, steps, tilt_down, mount_down);
+    var += (sigma * (intrinsic_vector(fu) - intrinsic_vector(fd)) / (2.0 * h)).cwiseAbs2();
+  }
+  return var.cwiseSqrt();
+}
+
+TEST(UncertaintyBudget, AxisTiltMovesTheOffsetsByGTauOverThreeAsTheTestsJacobian) {
+  // Joint fit, full circles, equal weights: a constant g sin(tau_p) S e_p in phase p only is
+  // orthogonal to every sin and cos column, so only the offsets take it, each by 1/3 of it:
+  // O_c moves by (g / 3) sum_p S_cp tau_p, std g sigma |s_c| / 3, for any device.
+  std::mt19937_64 rng(57);
+  const Device truth = testing_devices::random_device(rng);
+  const int steps = 24;
+  const PositionTable table = hand_table(truth.S, truth.O, steps, kStandardGravity);
+  const FitResult fit = core::fit(table);
+  BudgetSpec spec;
+  spec.axis_tilt_std_deg = 0.05;
+  const double sigma = deg_to_rad(spec.axis_tilt_std_deg);
+  const BudgetSource mc = source(uncertainty_budget(table, fit, spec), "axis_tilt_std_deg");
+  const BudgetSource lin =
+      source(linear_propagation_budget(table, fit, spec), "axis_tilt_std_deg");
+  const Eigen::Matrix<double, 9, 1> own = rig_linear_std(fit, steps, true, sigma);
+  for (int c = 0; c < 3; ++c) {
+    const double analytic = fit.local_gravity * sigma * truth.S.row(c).norm() / 3.0;
+    EXPECT_NEAR(own(6 + c), analytic, 1e-4 * analytic) << c;  // the test's two oracles agree
+    EXPECT_NEAR(mc.std.offset(c) / analytic, 1.0, 0.06) << c;
+    EXPECT_NEAR(lin.std.offset(c) / analytic, 1.0, 1e-3) << c;
+    // Responsivities and angles: second order in tau, far below the offsets' share.
+    EXPECT_LT(mc.std.responsivity(c), 1e-3 * analytic) << c;
+  }
+}
+
+TEST(UncertaintyBudget, MountMisalignmentMovesTheAnglesAsTheTestsJacobian) {
+  std::mt19937_64 rng(58);
+  const Device truth = testing_devices::random_device(rng);
+  const int steps = 24;
+  const PositionTable table = hand_table(truth.S, truth.O, steps, kStandardGravity);
+  const FitResult fit = core::fit(table);
+  BudgetSpec spec;
+  spec.mount_misalignment_std_deg = 0.05;
+  const double sigma = deg_to_rad(spec.mount_misalignment_std_deg);
+  const BudgetSource mc =
+      source(uncertainty_budget(table, fit, spec), "mount_misalignment_std_deg");
+  const BudgetSource lin =
+      source(linear_propagation_budget(table, fit, spec), "mount_misalignment_std_deg");
+  const Eigen::Matrix<double, 9, 1> own = rig_linear_std(fit, steps, false, sigma);
+  for (int i = 0; i < 3; ++i) {
+    // Angles: first order, of the order of sigma (each angle sees two phases' mountings).
+    EXPECT_GT(own(3 + i), 0.3 * sigma) << i;
+    EXPECT_NEAR(mc.std.angles_rad(i) / own(3 + i), 1.0, 0.06) << i;
+    EXPECT_NEAR(lin.std.angles_rad(i) / own(3 + i), 1.0, 1e-3) << i;
+  }
+  // On an orthogonal device the derivation gives it in closed form: in phase x a rotation
+  // (0, r_y, r_z) adds -g a_u (r_y cos alpha - r_z sin alpha) to u, which the joint fit reads as
+  // u_hat_y = a_u r_z / 2 and u_hat_z = -a_u r_y / 2; with phase z's and y's rotations on v and w
+  // each angle takes the sum of two independent halves of two rotations: std sigma / sqrt(2).
+  const Orthogonal d = orthogonal_device();
+  const BudgetSource ortho =
+      source(uncertainty_budget(d.table, d.fit, spec), "mount_misalignment_std_deg");
+  const Eigen::Matrix<double, 9, 1> own_ortho = rig_linear_std(d.fit, d.steps, false, sigma);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(own_ortho(3 + i) / (sigma / std::sqrt(2.0)), 1.0, 1e-3) << i;
+    EXPECT_NEAR(ortho.std.angles_rad(i) / (sigma / std::sqrt(2.0)), 1.0, 0.06) << i;
+  }
+}
+
+// The Monte Carlo's standard deviation is the sample one (n - 1): with 10 draws per budget its
+// square averages the linear variance over many seeds (divided by n it would average 0.9 of it).
+// The tilt's share of the offsets is linear to 1e-9 at 1e-3 deg.
+TEST(UncertaintyBudget, MonteCarloVarianceIsUnbiasedWithFewDraws) {
+  const Orthogonal d = orthogonal_device();
+  BudgetSpec spec;
+  spec.axis_tilt_std_deg = 1e-3;
+  spec.samples = 10;
+  const Eigen::Vector3d lin =
+      source(linear_propagation_budget(d.table, d.fit, spec), "axis_tilt_std_deg").std.offset;
+  double sum = 0.0;
+  int count = 0;
+  for (std::uint64_t seed = 1; seed <= 600; ++seed) {
+    spec.seed = seed;
+    const Eigen::Vector3d mc =
+        source(uncertainty_budget(d.table, d.fit, spec), "axis_tilt_std_deg").std.offset;
+    for (int c = 0; c < 3; ++c, ++count) sum += (mc(c) / lin(c)) * (mc(c) / lin(c));
+  }
+  // 1800 independent ratios (one tilt per offset on this device), each of relative std
+  // sqrt(2 / 9): the mean's std is 0.011; 0.04 is 3.6 of them, and 6 from 0.9.
+  EXPECT_NEAR(sum / count, 1.0, 0.04);
 }
 
 // ---- NIST's published bounds ------------------------------------------------------------------

@@ -47,15 +47,19 @@ class Served {
   std::thread thread_;
 };
 
+// A reply later than this is a fault ("no reply"). Generous, so that a loaded machine's late
+// reply is not taken for one; the no_reply cases wait this long.
+constexpr double kReplyTimeoutS = 2.0;
+
 // Two-axis map: x and y turn the first axis (y with the second held at 90 deg), z the second.
 ai::SerialGimbalOptions two_axis(const std::string& port, const std::string& a,
                                  const std::string& b) {
   ai::SerialGimbalOptions o;
   o.port = port;
-  o.reply_timeout_s = 0.5;
+  o.reply_timeout_s = kReplyTimeoutS;
   o.poll_interval_s = 0.01;
   o.settle_s = 0.2;
-  o.connect_timeout_s = 0.5;
+  o.connect_timeout_s = 5.0;
   o.axis_map.phases[0].axis = a;
   o.axis_map.phases[0].hold[b] = 0.0;
   o.axis_map.phases[1].axis = a;
@@ -89,7 +93,7 @@ bool wait_settled(ai::GimbalDriver& driver, double limit_s = 10.0) {
 std::string fault_of_move(ai::GimbalDriver& driver, const ai::GimbalTarget& t) {
   try {
     driver.move_to(t, wall_s());
-    wait_settled(driver, 5.0);
+    wait_settled(driver, 30.0);
   } catch (const ai::GimbalFault& e) {
     return e.what();
   }
@@ -182,18 +186,24 @@ TEST(Grbl, MovesSettlesAndReportsThePosition) {
 }
 
 TEST(Grbl, ReportsTheMotionWhileMoving) {
+  // A 3 s move; polled until the motion shows (no fixed sleep), which must then be mid-way: a
+  // report of 2 to 85 deg, unless the poll loop stalled for 2.7 s.
   ai::EmulatorOptions e = fast();
-  e.rate_deg_s = 90.0;
+  e.rate_deg_s = 30.0;
   Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
   ai::GrblDriver driver(two_axis(emu->port(), "X", "Y"));
   driver.move_to(target(Phase::X, 90.0), wall_s());
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  driver.update(wall_s());
+  double mid = 0.0;
+  for (const double end = wall_s() + 30.0; wall_s() < end;) {
+    driver.update(wall_s());
+    mid = reported_alpha_deg(driver, Phase::X);
+    if (mid > 2.0) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
   EXPECT_FALSE(driver.settled(wall_s()));
-  const double mid = reported_alpha_deg(driver, Phase::X);
-  EXPECT_GT(mid, 5.0);
+  EXPECT_GT(mid, 2.0);
   EXPECT_LT(mid, 85.0);
-  ASSERT_TRUE(wait_settled(driver));
+  ASSERT_TRUE(wait_settled(driver, 30.0));
 }
 
 // The stage rests until the move command goes out: the orientation reported for any instant
@@ -219,24 +229,36 @@ TEST(Grbl, ReportsNoMotionBeforeTheMoveCommand) {
   std::this_thread::sleep_for(std::chrono::milliseconds(20));
   const double command_s = rest_s + 1.0;
   driver.move_to(target(Phase::X, 90.0), command_s);
-  std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  driver.update(command_s + 0.1);
-  EXPECT_NEAR(alpha_at(command_s + 0.1), 90.0, 0.01);  // the move was seen
+  // Polled (stamps 0.1 s after the command on, 1 us apart) until the move shows, bounded.
+  double seen_s = command_s + 0.1;
+  for (int k = 0; k < 10000; ++k) {
+    seen_s = command_s + 0.1 + 1e-6 * k;
+    driver.update(seen_s);
+    if (std::abs(alpha_at(seen_s) - 90.0) < 0.01) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  EXPECT_NEAR(alpha_at(seen_s), 90.0, 0.01);  // the move was seen
   for (double t : {rest_s, rest_s + 0.5, command_s - 1e-6}) {
     EXPECT_NEAR(alpha_at(t), 0.0, 1e-9) << "at " << t - command_s << " s from the command";
   }
   // A phase change: until its command the DUT keeps the frame of the phase it is in. (Settled
   // on the node clock's stamps: 0.2 s at rest, settle_s.)
-  for (int k = 0; k < 100 && !driver.settled(command_s + 0.1); ++k) {
+  for (int k = 0; k < 1000 && !driver.settled(command_s + 0.1); ++k) {
     std::this_thread::sleep_for(std::chrono::milliseconds(15));
-    driver.update(command_s + 0.1 + 0.01 * k);
+    driver.update(seen_s + 0.01 * k);
   }
   ASSERT_TRUE(driver.settled(command_s + 1.5));
   const double z_command_s = command_s + 2.0;
   driver.update(z_command_s - 0.5);
   driver.move_to(target(Phase::Z, 30.0), z_command_s);
-  std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  driver.update(z_command_s + 0.1);
+  for (int k = 0; k < 10000; ++k) {
+    driver.update(z_command_s + 0.1);
+    if ((driver.orientation(z_command_s + 0.1).world_dut() -
+         ai::gimbal_transforms(Phase::Z, 30.0 * ai::core::kPi / 180.0, 0.0).world_dut())
+            .norm() < 1e-6)
+      break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
   const Eigen::Matrix3d before_x =
       ai::gimbal_transforms(Phase::X, 90.0 * ai::core::kPi / 180.0, 0.0).world_dut();
   const Eigen::Matrix3d after_z =
@@ -275,7 +297,13 @@ TEST(Grbl, StopHoldsThenResetsAndKeepsWorking) {
   Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
   ai::GrblDriver driver(two_axis(emu->port(), "X", "Y"));
   driver.move_to(target(Phase::X, 180.0), wall_s());
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  // Stopped once the motion shows (a 3 s move), not after a fixed sleep.
+  for (const double end = wall_s() + 30.0; wall_s() < end;) {
+    driver.update(wall_s());
+    if (reported_alpha_deg(driver, Phase::X) > 1.0) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_FALSE(driver.settled(wall_s()));
   driver.stop(wall_s());
   const auto commands = emu->commands();
   const auto hold = std::find(commands.begin(), commands.end(), "!");
@@ -374,7 +402,7 @@ ai::SerialGimbalOptions one_axis_smc100(const std::string& port) {
   o.port = port;
   o.baud = 57600;
   o.xon_xoff = true;
-  o.reply_timeout_s = 0.5;
+  o.reply_timeout_s = kReplyTimeoutS;
   o.poll_interval_s = 0.01;
   o.settle_s = 0.1;
   for (int p = 0; p < 3; ++p) {
@@ -572,7 +600,7 @@ TEST(Recover, Smc100FollowingErrorIsResetAndHomed) {
   ai::SerialGimbalOptions o;
   o.port = emu->port();
   o.baud = 57600;
-  o.reply_timeout_s = 0.5;
+  o.reply_timeout_s = kReplyTimeoutS;
   o.poll_interval_s = 0.01;
   o.settle_s = 0.1;
   o.home_at_start = true;
@@ -597,7 +625,7 @@ TEST(Recover, Smc100WithoutHomingSaysWhatToDo) {
   Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::Smc100Emulator(e)));
   ai::SerialGimbalOptions o;
   o.port = emu->port();
-  o.reply_timeout_s = 0.5;
+  o.reply_timeout_s = kReplyTimeoutS;
   o.poll_interval_s = 0.01;
   o.settle_s = 0.1;
   for (int p = 0; p < 3; ++p) {

@@ -5,10 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "../core/random_device.h"
 #include "accel_intrinsics/core/discrepancy.h"
@@ -64,6 +66,20 @@ TEST(AnalysisReport, JsonHasContractKeysAndCsvHasOneLinePerResidual) {
     EXPECT_EQ(j["gap"][when]["by_phase_accelerometer"].size(), 9u);
   }
   EXPECT_GT(j["gap"]["before"]["rms"].get<double>(), j["gap"]["after"]["rms"].get<double>());
+  // The screening's p-values, each under its own key.
+  ASSERT_EQ(j["screening"].size(), a.steps.size());
+  for (std::size_t s = 0; s < a.steps.size(); ++s) {
+    const nlohmann::json& cands = j["screening"][s]["candidates"];
+    ASSERT_EQ(cands.size(), a.steps[s].candidates.size());
+    for (std::size_t k = 0; k < cands.size(); ++k) {
+      const CandidateScore& c = a.steps[s].candidates[k];
+      if (!c.identifiable) continue;
+      EXPECT_EQ(cands[k]["p_raw"].get<double>(), c.p_raw);
+      EXPECT_EQ(cands[k]["p_holm"].get<double>(), c.p_holm);
+      EXPECT_EQ(cands[k]["p_value"].get<double>(), c.p_adjusted);
+      EXPECT_EQ(cands[k]["score_chi2"].get<double>(), c.score_chi2);
+    }
+  }
 
   std::ostringstream csv;
   io::write_residuals_csv(csv, table, a.before_fit, a.after_fit);
@@ -72,7 +88,23 @@ TEST(AnalysisReport, JsonHasContractKeysAndCsvHasOneLinePerResidual) {
   int count = 0;
   std::getline(lines, line);
   EXPECT_EQ(line.rfind("phase,step,angle_rad,time_s,approach,accelerometer,measured,sigma", 0), 0u);
-  while (std::getline(lines, line)) ++count;
+  // Each line: measured minus model is the residual, the residual over sigma its z, before
+  // and after; measured is the dwell mean.
+  while (std::getline(lines, line)) {
+    std::vector<std::string> f;
+    std::istringstream fields(line);
+    for (std::string x; std::getline(fields, x, ',');) f.push_back(x);
+    ASSERT_EQ(f.size(), 14u) << line;
+    const double measured = std::stod(f[6]), sigma = std::stod(f[7]);
+    const int row = count / 3, axis = count % 3;
+    EXPECT_NEAR(measured, table.rows[static_cast<std::size_t>(row)].mean(axis), 1e-9) << line;
+    for (int b : {8, 11}) {
+      const double model = std::stod(f[b]), residual = std::stod(f[b + 1]), z = std::stod(f[b + 2]);
+      EXPECT_NEAR(residual, measured - model, 1e-9) << line;
+      EXPECT_NEAR(z, residual / sigma, 1e-6 * std::abs(residual / sigma) + 1e-9) << line;
+    }
+    ++count;
+  }
   EXPECT_EQ(count, 3 * static_cast<int>(table.rows.size()));
 }
 

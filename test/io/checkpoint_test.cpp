@@ -129,6 +129,29 @@ TEST(Checkpoint, TemperaturesAreKeptAndAnOldTableIsContinuedInItsOwnColumns) {
   EXPECT_FALSE(restored->table.rows[1].has_temperature());
 }
 
+// Every field of the state file survives the round trip, each with a value of its own (done and
+// a fault of a finished run, as the node writes them at DONE and on an abort).
+TEST(Checkpoint, StateRoundTripsEveryField) {
+  TempDir dir;
+  {
+    CheckpointFiles files(dir.path(), "");
+    files.append_row(row(core::Phase::Y, 2));
+    core::CheckpointState state;
+    state.time_origin_s = 1700000000.25;
+    state.steps = 9;
+    state.done = true;
+    state.fault = "dwell phase y step 2 has 5 samples";
+    files.write_state(state);
+  }
+  CheckpointFiles files(dir.path(), "");
+  const auto restored = files.load();
+  ASSERT_TRUE(restored.has_value());
+  EXPECT_EQ(restored->state.time_origin_s, 1700000000.25);
+  EXPECT_EQ(restored->state.steps, 9u);
+  EXPECT_TRUE(restored->state.done);
+  EXPECT_EQ(restored->state.fault, "dwell phase y step 2 has 5 samples");
+}
+
 TEST(Checkpoint, NoStateFileMeansNoCheckpoint) {
   TempDir dir;
   CheckpointFiles files(dir.path(), "");

@@ -80,6 +80,8 @@ class CalibrationNodeTest : public ::testing::Test {
   void on_status(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
     std::map<std::string, std::string> values;
     for (const auto& kv : msg->values) values[kv.key] = kv.value;
+    values["(message)"] = msg->message;
+    values["(level)"] = std::to_string(static_cast<int>(msg->level));
     std::lock_guard<std::mutex> lock(status_mutex_);
     status_ = values;
   }
@@ -302,6 +304,79 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
   const ai::GetIntrinsics::Response after = call_get();
   EXPECT_FALSE(after.success);
   EXPECT_NE(after.message.find("phase x"), std::string::npos) << after.message;
+}
+
+// A run whose fit fails the quality gate (|w| = 0.3 of the true device: outside the plausible
+// [0.5, 2] for outputs in m/s^2): the result is published and written for inspection, but the
+// service answers success false naming the gate, no export is written, and the status says so.
+TEST_F(CalibrationNodeTest, AResultFailingTheQualityGateIsNoCalibration) {
+  std_srvs::Trigger reset;
+  ASSERT_TRUE(reset_.call(reset));
+  for (const char* name : {"imu_calib.yaml", "px4.params", "intrinsics.yaml"})
+    std::remove((output_dir_ + "/" + name).c_str());
+  S_.row(2) *= 0.3;
+  const Eigen::Vector3d delta(0.01, 0.02, 0.03);
+  double t = 1000.0;
+  set_clock(t - 10.0);
+  for (int p = 0; p < 3; ++p) {
+    const int positions = p == 2 ? steps_ + 1 : steps_;
+    for (int n = 0; n < positions; ++n) {
+      command(t, p, n, ai::GimbalCommand::MOVING);
+      command(t + 1.0, p, n, ai::GimbalCommand::SETTLED);
+      const Eigen::Vector3d mean = truth_outputs(p, n);
+      for (int k = 0; k < 10; ++k)
+        sample(t + 1.0 + 0.1 * k, mean + (k % 2 == 0 ? delta : Eigen::Vector3d(-delta)));
+      t += 2.0;
+    }
+  }
+  command(t, 2, steps_, ai::GimbalCommand::DONE);
+  // The commands arrive in order on their topic: once the node says DONE was received, every
+  // command of the run is in (the samples went out before them). Waited for, not slept.
+  {
+    const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(60.0);
+    std::string message;
+    while (ros::WallTime::now() < deadline) {
+      message = call_get().message;
+      if (message.find("DONE received") != std::string::npos) break;
+      ros::WallDuration(0.05).sleep();
+    }
+    ASSERT_NE(message.find("DONE received"), std::string::npos) << message;
+  }
+  // Past DONE + reorder window: the node flushes and fits. Wait for the fit's answer (the
+  // service names what is missing until then), with a generous bound.
+  set_clock(t + 60.0 + 1.0);
+  ai::GetIntrinsics::Response r;
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(60.0);
+  while (ros::WallTime::now() < deadline) {
+    r = call_get();
+    if (r.message.find("quality gate") != std::string::npos) break;
+    ros::WallDuration(0.05).sleep();
+  }
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.message.find("the result fails the quality gate"), std::string::npos) << r.message;
+  EXPECT_NE(r.message.find("responsivity |w|"), std::string::npos) << r.message;
+  EXPECT_FALSE(r.result.quality_pass);
+  EXPECT_NEAR(r.result.responsivity[2], S_.row(2).norm(), 1e-6);
+  // The result file is there, marked failing; the exports are not.
+  const YAML::Node written = YAML::LoadFile(output_dir_ + "/intrinsics.yaml");
+  EXPECT_FALSE(written["quality"]["pass"].as<bool>());
+  for (const char* name : {"imu_calib.yaml", "px4.params"}) {
+    std::ifstream f(output_dir_ + "/" + name);
+    EXPECT_FALSE(f.good()) << name << " written for a result that fails the gate";
+  }
+  // The status: the run is over, and its result is no calibration.
+  const ros::WallTime status_deadline = ros::WallTime::now() + ros::WallDuration(30.0);
+  std::map<std::string, std::string> st = status();
+  while ((st["state"] != "RESULT" || st["(message)"].find("quality gate") == std::string::npos) &&
+         ros::WallTime::now() < status_deadline) {
+    ros::WallDuration(0.05).sleep();
+    st = status();
+  }
+  EXPECT_EQ(st["state"], "RESULT");
+  EXPECT_NE(st["(message)"].find("result fails the quality gate"), std::string::npos)
+      << st["(message)"];
+  EXPECT_EQ(st["(level)"], std::to_string(static_cast<int>(diagnostic_msgs::DiagnosticStatus::ERROR)));
+  ASSERT_TRUE(reset_.call(reset));
 }
 
 TEST(NodeParams, RefuseToStartNamingTheParameter) {

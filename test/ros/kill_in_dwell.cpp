@@ -118,7 +118,12 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
     ros::WallDuration(0.5).sleep();
   }
   ASSERT_TRUE(res.success) << res.message;
-  ros::WallDuration(1.0).sleep();  // the status after the fit
+  // The status after the fit (published with the result), waited for with a generous bound.
+  for (const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(60.0);
+       value(status, "state") != "RESULT" && ros::WallTime::now() < end;) {
+    ros::WallDuration(0.05).sleep();
+  }
+  ASSERT_EQ(value(status, "state"), "RESULT");
   EXPECT_EQ(value(status, "restored"), "true");
   // The restarted node saw the MOVING that ended the cut dwell and rewound the controller to the
   // position after its last checkpointed row before the next SETTLED: no dwell measured before

@@ -18,6 +18,22 @@ std::string progress_value(const std::string& key) {
   std::lock_guard<std::mutex> lock(mutex);
   return progress[key];
 }
+std::map<std::string, std::string> status;  // calibration/status, latched
+void on_status(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex);
+  for (const auto& kv : msg->values) status[kv.key] = kv.value;
+}
+std::string status_value(const std::string& key) {
+  std::lock_guard<std::mutex> lock(mutex);
+  return status[key];
+}
+// Waits (wall clock, a generous bound) until `done` holds; returns whether it did.
+template <typename Done>
+bool wait_for(Done done, double limit_s = 60.0) {
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(limit_s);
+  while (!done() && ros::WallTime::now() < deadline) ros::WallDuration(0.05).sleep();
+  return done();
+}
 }  // namespace
 
 TEST(ServiceBeforeCompletion, NamesTheMissingPhase) {
@@ -27,6 +43,7 @@ TEST(ServiceBeforeCompletion, NamesTheMissingPhase) {
   pnh.getParam("steps", steps);
   pnh.getParam("timeout_s", timeout_s);
   ros::Subscriber sub = nh.subscribe("/gimbal_controller/progress", 10, on_progress);
+  ros::Subscriber status_sub = nh.subscribe("/calibration/status", 10, on_status);
   ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
   ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(60.0)));
 
@@ -54,7 +71,9 @@ TEST(ServiceBeforeCompletion, NamesTheMissingPhase) {
     ros::WallDuration(0.05).sleep();
   }
   ASSERT_EQ(progress_value("phase"), "y") << "the gimbal never reached phase y";
-  ros::WallDuration(0.5).sleep();  // past the reorder window of the dwells before
+  // Past the reorder window of the dwells before: the node has released phase x's dwells.
+  ASSERT_TRUE(wait_for([&] { return status_value("dwells_x") == std::to_string(steps); }))
+      << "dwells_x " << status_value("dwells_x");
 
   r = stand_checks::get_intrinsics("");
   EXPECT_FALSE(r.success);
@@ -69,7 +88,9 @@ TEST(ServiceBeforeCompletion, NamesTheMissingPhase) {
   std_srvs::Trigger abort;
   ASSERT_TRUE(ros::service::call("/gimbal_controller/abort", abort));
   EXPECT_TRUE(abort.response.success) << abort.response.message;
-  ros::WallDuration(1.5).sleep();  // DONE + reorder window (5 s simulated at 10x)
+  // The abort reaches the calibration node (its run is ABORTED), waited for, not slept.
+  ASSERT_TRUE(wait_for([] { return status_value("state") == "ABORTED"; }))
+      << "calibration state " << status_value("state");
   r = stand_checks::get_intrinsics("");
   EXPECT_FALSE(r.success);
   EXPECT_NE(r.message.find("phase z (0 of"), std::string::npos) << r.message;

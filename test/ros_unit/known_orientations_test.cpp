@@ -1,7 +1,8 @@
 // offline_fit on the known-orientation examples of docs/ (6-position flip and 24-position
 // tumble, outputs in counts), written by tools/make_orientation_examples.py with numpy: the
 // fitted responsivities and offsets equal the truth in the files' comments within 4 sigma, in
-// counts per m/s^2, and the result states its output unit.
+// counts per m/s^2 (the three angles and the nine vector components too), and the result
+// states its output unit.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -86,6 +87,15 @@ void expect_truth(const std::string& name) {
   };
   EXPECT_NEAR(j["angles_deg"]["uv"].get<double>(), angle(0, 1), 4 * j["angles_std_deg"]["uv"].get<double>());
   EXPECT_NEAR(j["angles_deg"]["vw"].get<double>(), angle(1, 2), 4 * j["angles_std_deg"]["vw"].get<double>());
+  EXPECT_NEAR(j["angles_deg"]["wu"].get<double>(), angle(2, 0), 4 * j["angles_std_deg"]["wu"].get<double>());
+  // The vectors (rows of S, counts per m/s^2), component by component.
+  for (int s = 0; s < 3; ++s) {
+    for (int c = 0; c < 3; ++c) {
+      const double v = j["vectors"][names[s]][c], sd = j["vectors_std"][names[s]][c];
+      EXPECT_GT(sd, 0.0) << name << " " << names[s] << c;
+      EXPECT_NEAR(v, t.counts_per_ms2 * t.S(s, c), 4 * sd) << name << " " << names[s] << c;
+    }
+  }
 }
 
 TEST(KnownOrientations, SixPositionFlipExample) { expect_truth("six_position.csv"); }

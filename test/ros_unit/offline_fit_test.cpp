@@ -665,6 +665,17 @@ TEST(OfflineFit, SettleDiscardDropsTheFirstSecondsOfEachDwell) {
   EXPECT_EQ(j["input"]["dropped_settle_discard"].get<std::uint64_t>(), 3u * run.dwells.size());
   EXPECT_EQ(j["input"]["dropped_outside_dwell"].get<std::uint64_t>(), run.dropped_outside);
 
+  // The built binary, as a shell sees it: exit status 3 (the number, not the enum), the result
+  // file written, the export asked for not.
+  const ToolRun bin = run_binary({"--bag", dir.file("run.bag"), "--settle-discard", "0.25",
+                                  "--json", dir.file("bin.json"), "--export",
+                                  "px4=" + dir.file("bin_px4.params")},
+                                 dir);
+  EXPECT_EQ(bin.status, 3) << bin.err;
+  EXPECT_FALSE(load_json(dir.file("bin.json"))["quality"]["pass"].get<bool>());
+  EXPECT_FALSE(file_exists(dir.file("bin_px4.params"))) << bin.err;
+  EXPECT_NE(bin.err.find("has 2 samples, fewer than 3"), std::string::npos) << bin.err;
+
   // 0 (the default, spelled out) is the old behaviour: all five samples.
   const ToolRun zero = run_tool(
       {"--bag", dir.file("run.bag"), "--settle-discard", "0", "--json", dir.file("zero.json")},
@@ -932,29 +943,24 @@ TEST(OfflineFitCommandLine, BagAndCsvRunsEqualTheLibrary) {
   EXPECT_EQ(json::parse(csv.out)["model"], "eq4");
 }
 
-// --analyze adds the analysis keys of the contract; a build without the analysis refuses cleanly
-// (one line, no output file) instead of pretending.
-TEST(OfflineFit, AnalyzeAddsContractKeysOrRefusesCleanly) {
+// --analyze adds the analysis keys of the contract (the analysis is always built in: the run
+// must succeed and carry them).
+TEST(OfflineFit, AnalyzeAddsContractKeys) {
   TempDir dir;
   make_hand_bag(dir.file("run.bag"));
   const ToolRun r =
       run_tool({"--bag", dir.file("run.bag"), "--analyze", "--json", dir.file("a.json")}, dir);
-  if (r.status == 0) {
-    const json j = load_json(dir.file("a.json"));
-    expect_contract_keys(j);
-    ASSERT_TRUE(j.contains("effects") && j.contains("ambiguous") && j.contains("gap")) << j.dump();
-    EXPECT_TRUE(j["effects"].is_array());
-    EXPECT_TRUE(j["ambiguous"].is_array());
-    for (const char* when : {"before", "after"}) {
-      EXPECT_TRUE(j["gap"][when]["reduced_chi2"].is_number()) << when;
-      EXPECT_TRUE(j["gap"][when]["rms"].is_number()) << when;
-    }
-    EXPECT_EQ(j["model"], "joint");  // the analysis never replaces the main result's keys
-  } else {
-    expect_single_line_error(r, "--analyze");
-    EXPECT_NE(r.err.find("not available"), std::string::npos);
-    EXPECT_FALSE(file_exists(dir.file("a.json")));
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json j = load_json(dir.file("a.json"));
+  expect_contract_keys(j);
+  ASSERT_TRUE(j.contains("effects") && j.contains("ambiguous") && j.contains("gap")) << j.dump();
+  EXPECT_TRUE(j["effects"].is_array());
+  EXPECT_TRUE(j["ambiguous"].is_array());
+  for (const char* when : {"before", "after"}) {
+    EXPECT_TRUE(j["gap"][when]["reduced_chi2"].is_number()) << when;
+    EXPECT_TRUE(j["gap"][when]["rms"].is_number()) << when;
   }
+  EXPECT_EQ(j["model"], "joint");  // the analysis never replaces the main result's keys
 }
 
 // --csv with --analyze (a promise of the README): the analysis of a position table, without the
