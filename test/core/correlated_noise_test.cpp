@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <optional>
@@ -52,9 +53,9 @@ TEST(NoiseModel, SlowCovarianceMatchesTheDoubleIntegral) {
     SCOPED_TRACE(std::to_string(c[0]) + ".." + std::to_string(c[1]) + " x " +
                  std::to_string(c[2]) + ".." + std::to_string(c[3]));
     const double g = m.slow_covariance(0, c[0], c[1], c[2], c[3], origin);
-    EXPECT_NEAR(g, brute_covariance(gm, c[0], c[1], c[2], c[3]), 1e-4 * std::abs(g) + 1e-14);
+    EXPECT_NEAR(g, brute_covariance(gm, c[0], c[1], c[2], c[3]), 1e-3 * std::abs(g) + 1e-14);
     const double r = m.slow_covariance(1, c[0], c[1], c[2], c[3], origin);
-    EXPECT_NEAR(r, brute_covariance(rw, c[0], c[1], c[2], c[3]), 1e-4 * std::abs(r) + 1e-14);
+    EXPECT_NEAR(r, brute_covariance(rw, c[0], c[1], c[2], c[3]), 1e-3 * std::abs(r) + 1e-14);
   }
   // The variance of a dwell mean: white / n plus the slow part; long dwells approach sigma^2 2
   // tau / T (Gauss-Markov), short ones sigma^2.
