@@ -107,6 +107,23 @@ void rests_from_stream(std::vector<core::ImuSample> samples, const OfflineFitArg
   input->table.time_origin_s = samples.front().stamp_s;
   input->context.rest_detection = found;
   input->context.rest_min_s = args.rest_min_s;
+  // The noise model of the first rest of at least 30 s, when there is one (DESIGN.md section 12):
+  // the tumble fit then adds its slow part to each rest's variance.
+  if (core::find_long_rest(input->table)) {
+    std::vector<double> stamps;
+    std::vector<Eigen::Vector3d> outputs;
+    stamps.reserve(samples.size());
+    outputs.reserve(samples.size());
+    for (const core::ImuSample& x : samples) {
+      stamps.push_back(x.stamp_s);
+      outputs.push_back(x.outputs);
+    }
+    try {
+      input->noise_model = core::noise_model_of_run(input->table, stamps, outputs);
+    } catch (const std::invalid_argument&) {
+      // Too short a record for a model: white, as before.
+    }
+  }
 }
 
 Input read_samples_input(const OfflineFitArguments& args) {
