@@ -631,6 +631,61 @@ CrossValidatedGap cross_validated_gap(const PositionTable& table, const FitOptio
   return out;
 }
 
+NoiseModel scale_slow_part_to_residuals(const PositionTable& table, const FitOptions& options) {
+  NoiseModel model = options.noise_model;
+  if (model.white() || table.rows.size() < 8) return model;
+  const Eigen::Index n = static_cast<Eigen::Index>(table.rows.size());
+  const double dof = static_cast<double>(n) - 4.0 - static_cast<double>(options.effects.size()) / 3.0;
+  // Per-axis generalized chi-square of the fit with the slow parts scaled by c.
+  auto chi2_with = [&](const Eigen::Vector3d& c) {
+    FitOptions o = options;
+    for (int s = 0; s < 3; ++s) {
+      o.noise_model.axes[s].gm_sigma = model.axes[s].gm_sigma * std::sqrt(c(s));
+      o.noise_model.axes[s].rw_density = model.axes[s].rw_density * std::sqrt(c(s));
+    }
+    const FitResult f = fit(table, o);
+    Eigen::Vector3d chi2 = Eigen::Vector3d::Zero();
+    Eigen::VectorXd z(3 * n);
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (int s = 0; s < 3; ++s)
+        z(3 * i + s) = f.residuals[static_cast<std::size_t>(i)](s) /
+                       f.standard_errors[static_cast<std::size_t>(i)](s);
+    if (f.correlation) f.correlation->whiten(z);
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (int s = 0; s < 3; ++s) chi2(s) += z(3 * i + s) * z(3 * i + s);
+    return chi2;
+  };
+  const Eigen::Vector3d at_one = chi2_with(Eigen::Vector3d::Ones());
+  Eigen::Vector3d lo = Eigen::Vector3d::Ones(), hi = Eigen::Vector3d::Ones();
+  std::array<bool, 3> scale{{false, false, false}};
+  for (int s = 0; s < 3; ++s) {
+    scale[s] = model.axes[s].slow() && at_one(s) > dof;
+    if (scale[s]) hi(s) = 1e4;
+  }
+  if (!scale[0] && !scale[1] && !scale[2]) return model;
+  // Bisection on log c, the three axes at once (their fits are independent).
+  for (int iteration = 0; iteration < 24; ++iteration) {
+    Eigen::Vector3d mid;
+    for (int s = 0; s < 3; ++s) mid(s) = scale[s] ? std::sqrt(lo(s) * hi(s)) : 1.0;
+    const Eigen::Vector3d chi2 = chi2_with(mid);
+    for (int s = 0; s < 3; ++s) {
+      if (!scale[s]) continue;
+      (chi2(s) > dof ? lo : hi)(s) = mid(s);
+    }
+  }
+  std::ostringstream note;
+  note << std::setprecision(3) << "; slow part scaled to the run's residuals by";
+  for (int s = 0; s < 3; ++s) {
+    const double c = scale[s] ? std::sqrt(lo(s) * hi(s)) : 1.0;
+    model.axes[s].gm_sigma *= std::sqrt(c);
+    model.axes[s].rw_density *= std::sqrt(c);
+    note << " " << c;
+  }
+  note << " (variance, u v w)";
+  model.source += note.str();
+  return model;
+}
+
 double noncentrality_for_power(double critical_chi2, double power) {
   if (!(critical_chi2 > 0.0) || !(power > 0.0 && power < 1.0)) {
     throw std::invalid_argument(
@@ -699,7 +754,9 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
   fo.local_gravity = options.local_gravity;
   fo.effects = options.base_effects;
   fo.noise_model = options.noise_model;
-  result.noise_model = options.noise_model;
+  // The rest's slow part, scaled up to the run's residuals when it falls short (see the header).
+  fo.noise_model = scale_slow_part_to_residuals(table, fo);
+  result.noise_model = fo.noise_model;
   FitResult current = fit(table, fo);
   result.before_fit = current;
   result.before = compute_gap(table, current, options.harmonics, options.time_bins);
@@ -861,7 +918,11 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
     final_options.effects = current.effects;
     result.after.cv = cross_validated_gap(table, final_options, options.cv_folds);
   }
-  result.correlated_noise = correlated_noise_entry(table, current, options, result.after);
+  {
+    AnalysisOptions used = options;
+    used.noise_model = fo.noise_model;
+    result.correlated_noise = correlated_noise_entry(table, current, used, result.after);
+  }
   for (NamedEffect& ne : result.effects) {
     for (std::size_t i = 0; i < current.effects.size(); ++i) {
       if (same_term(current.effects[i], ne.effect)) {

@@ -164,6 +164,15 @@ struct CrossValidatedGap {
 CrossValidatedGap cross_validated_gap(const PositionTable& table, const FitOptions& options,
                                       int folds);
 
+// The slow part of a noise model estimated from one long rest is rough (a 120 s rest gives a 30 s
+// Gauss-Markov bias to about +-40 %), and an underestimate lets slow noise through as effects.
+// This scales each axis' slow part (Gauss-Markov variance and random-walk rate together) by the
+// factor c_s >= 1 that brings that accelerometer's generalized chi-square of the base fit (S, O
+// and options.effects, the GLS of fit.h) to its degrees of freedom: the amplitude from the whole
+// run's dwells, the shape (tau) from the rest. Never scales down (a rest that saw more than the
+// run keeps its model). White models come back unchanged. The source says the factors.
+NoiseModel scale_slow_part_to_residuals(const PositionTable& table, const FitOptions& options);
+
 struct Gap {
   GapSummary summary;
   CrossValidatedGap cv;  // filled by analyze() for the `before` and `after` gaps
