@@ -14,7 +14,13 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
                                   const CalibrateOptions& options) {
   CalibrationReport report;
   report.certificate_refit_policy = options.certificate_refit;
-  report.base_fit = fit(table, options.fit);
+  // Noise that is not white (DESIGN.md section 12): the rest's slow part scaled up to the run's
+  // residuals when it falls short (discrepancy.h scale_slow_part_to_residuals), for the fit as for
+  // the analysis. Gimbal and position tables only (the tumble fit inflates variances instead).
+  FitOptions fit_options = options.fit;
+  if (!fit_options.noise_model.white() && rows_with_unknown_orientation(table) == 0)
+    fit_options.noise_model = scale_slow_part_to_residuals(table, fit_options);
+  report.base_fit = fit(table, fit_options);
   report.certificate = report.base_fit;
   report.noise = dwell_noise(table);
   if (!options.analyze) return report;

@@ -188,11 +188,16 @@ Screening screen(const PositionTable& table, const std::vector<DwellGeometry>& g
     }
   }
   device.effects = terms;
-  const Eigen::VectorXd z = normalized_residuals(twin_residuals(table, device, g), se);
+  // With a noise model that has a slow part (GLS), residuals and Jacobians are whitened by the
+  // fit's L^-1: the score statistics are then chi2(1) under correlated noise as under white.
+  const std::shared_ptr<const DwellCorrelation>& corr = fit.correlation;
+  Eigen::VectorXd z = normalized_residuals(twin_residuals(table, device, g), se);
+  if (corr) corr->whiten(z);
   const Eigen::Index n = z.size();
   const int p = 12 + static_cast<int>(terms.size());
   Eigen::MatrixXd A(n, p);
   for (int j = 0; j < p; ++j) A.col(j) = weighted_derivative(geoms, se, device, terms, j, g);
+  if (corr) corr->whiten_columns(A);
   const Eigen::MatrixXd Q = column_space(A);
 
   Screening out;
@@ -207,7 +212,8 @@ Screening screen(const PositionTable& table, const std::vector<DwellGeometry>& g
     Effect zero = c;
     zero.value = 0.0;
     with.push_back(zero);
-    const Eigen::VectorXd b = weighted_derivative(geoms, se, device, with, p, g);
+    Eigen::VectorXd b = weighted_derivative(geoms, se, device, with, p, g);
+    if (corr) corr->whiten(b);
     const Eigen::VectorXd b_perp = b - Q * (Q.transpose() * b);
     const double bb = b.squaredNorm();
     const double pp = b_perp.squaredNorm();
@@ -312,6 +318,55 @@ double ambiguity_threshold_corr(const Screening& s, int a_row, int b_row) {
 
 }  // namespace
 
+namespace {
+
+// The vocabulary's noise-model entry (discrepancy.h NoiseEntry).
+NoiseEntry correlated_noise_entry(const PositionTable& table, const FitResult& final_fit,
+                                  const AnalysisOptions& options, const Gap& model_gap) {
+  NoiseEntry e;
+  e.noise_model = options.noise_model.kind();
+  FitOptions white;
+  white.model = FitModel::Joint;
+  white.local_gravity = options.local_gravity;
+  white.effects = final_fit.effects;
+  GapSummary white_gap = model_gap.summary;
+  if (!options.noise_model.white()) {
+    try {
+      white_gap = compute_gap(table, fit(table, white), 0, 1).summary;
+    } catch (const std::exception& ex) {
+      e.reason = std::string("the white refit failed: ") + ex.what();
+      return e;
+    }
+  }
+  e.white_reduced_chi2 = white_gap.reduced_chi2;
+  e.white_p_value = white_gap.p_value;
+  e.model_reduced_chi2 = model_gap.summary.reduced_chi2;
+  e.model_p_value = model_gap.summary.p_value;
+  const bool exceeds_white = white_gap.p_value < options.alpha;
+  if (options.noise_model.white()) {
+    e.reason = exceeds_white
+                   ? "the residuals exceed the white-noise prediction, but the run has no noise "
+                     "model (no long rest: protocol initial_rest_s, or a dwell 10 times the "
+                     "median) to tell correlated noise from a missing effect"
+                   : "no noise model, and the residuals are consistent with white noise";
+    return e;
+  }
+  const bool explained = model_gap.summary.p_value >= options.alpha;
+  e.named = exceeds_white && explained;
+  if (e.named) {
+    e.reason = "the residuals exceed the white-noise prediction and the noise model (" + e.noise_model +
+               ") explains them; no catalog effect explains them better out of sample";
+  } else if (!exceeds_white) {
+    e.reason = "the residuals are consistent with white noise";
+  } else {
+    e.reason = "the residuals exceed even the noise model (" + e.noise_model +
+               "): something else is missing";
+  }
+  return e;
+}
+
+}  // namespace
+
 void validate(const AnalysisOptions& options) {
   auto fail = [](const std::string& m) { throw std::invalid_argument("analysis: " + m); };
   if (!std::isfinite(options.local_gravity) || options.local_gravity <= 0.0)
@@ -330,6 +385,7 @@ void validate(const AnalysisOptions& options) {
   if (options.refit_top < 1) fail("refit_top must be >= 1");
   if (options.harmonics < 0 || options.harmonics > 32) fail("harmonics must be in [0, 32]");
   if (options.time_bins < 1) fail("time_bins must be >= 1");
+  if (options.cv_folds < 0 || options.cv_folds == 1) fail("cv_folds must be 0 (none) or >= 2");
   if (!(options.detection_power > 0.0 && options.detection_power < 1.0))
     fail("detection_power must be in (0, 1)");
 }
@@ -398,11 +454,20 @@ Gap compute_gap(const PositionTable& table, const FitResult& fit, int harmonics,
   const std::vector<Eigen::Vector3d> se = weights_for(table, fit);
   const std::vector<Eigen::Vector3d> res =
       twin_residuals(table, device_from_fit(fit), fit.local_gravity);
+  // Normalized residuals; whitened by the fit's correlation when it used one (GLS), so that
+  // every summary below is judged against unit-variance independent entries.
+  std::vector<Eigen::Vector3d> zn(res.size());
+  {
+    Eigen::VectorXd z = normalized_residuals(res, se);
+    if (fit.correlation && fit.correlation->rows == res.size()) fit.correlation->whiten(z);
+    for (std::size_t r = 0; r < res.size(); ++r)
+      zn[r] = z.segment<3>(3 * static_cast<Eigen::Index>(r));
+  }
   Gap gap;
   double chi2 = 0.0, sum_sq = 0.0;
   for (std::size_t r = 0; r < res.size(); ++r) {
     for (int s = 0; s < 3; ++s) {
-      const double zz = res[r](s) / se[r](s);
+      const double zz = zn[r](s);
       chi2 += zz * zz;
       sum_sq += res[r](s) * res[r](s);
     }
@@ -426,7 +491,7 @@ Gap compute_gap(const PositionTable& table, const FitResult& fit, int harmonics,
       double cell_sq = 0.0;
       for (int i = 0; i < cell.n; ++i) {
         const std::size_t r = rows[i];
-        zc(i) = res[r](s) / se[r](s);
+        zc(i) = zn[r](s);
         cell_sq += res[r](s) * res[r](s);
       }
       cell.chi2 = zc.squaredNorm();
@@ -481,7 +546,7 @@ Gap compute_gap(const PositionTable& table, const FitResult& fit, int harmonics,
       const double dt = geoms[r].time_s - t_mean;
       stt += dt * dt;
       for (int s = 0; s < 3; ++s) {
-        const double zz = res[r](s) / se[r](s);
+        const double zz = zn[r](s);
         gap.time_bins[b].chi2 += zz * zz;
         gap.time_bins[b].n += 1;
         bin_sq[b] += res[r](s) * res[r](s);
@@ -495,6 +560,130 @@ Gap compute_gap(const PositionTable& table, const FitResult& fit, int harmonics,
     for (int s = 0; s < 3; ++s) gap.trend_z[s] = stt > 0.0 ? stz[s] / std::sqrt(stt) : 0.0;
   }
   return gap;
+}
+
+CrossValidatedGap cross_validated_gap(const PositionTable& table, const FitOptions& options,
+                                      int folds) {
+  CrossValidatedGap out;
+  const std::size_t n = table.rows.size();
+  if (folds < 2 || n < static_cast<std::size_t>(2 * folds)) return out;
+  // The dwells in time order, cut into contiguous blocks of (nearly) equal count.
+  std::vector<std::size_t> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  auto mid = [&](std::size_t i) { return 0.5 * (table.rows[i].t_start_s + table.rows[i].t_end_s); };
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return mid(a) < mid(b); });
+  std::vector<int> fold_of(n);
+  for (std::size_t k = 0; k < n; ++k)
+    fold_of[order[k]] = static_cast<int>(k * static_cast<std::size_t>(folds) / n);
+  // The model's inputs of every row from the whole run (approach, drift clock, temperature
+  // reference), so a held-out row is predicted where the full run puts it.
+  const std::vector<DwellGeometry> geoms = dwell_geometries(table);
+  const std::vector<Eigen::Vector3d> se = dwell_standard_errors(table);
+  const double origin = effective_time_origin(table);
+  double t_first = table.rows.front().t_start_s;
+  for (const DwellRecord& r : table.rows) t_first = std::min(t_first, r.t_start_s);
+  double total = 0.0;
+  for (int f = 0; f < folds; ++f) {
+    PositionTable train;
+    train.time_origin_s = origin;
+    std::vector<std::size_t> test;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (fold_of[i] == f) {
+        test.push_back(i);
+      } else {
+        train.rows.push_back(table.rows[i]);
+      }
+    }
+    FitResult fitted;
+    try {
+      fitted = fit(train, options);
+    } catch (const std::exception&) {
+      ++out.failed_folds;
+      continue;
+    }
+    const Device device = device_from_fit(fitted);
+    const Eigen::Index m = static_cast<Eigen::Index>(test.size());
+    for (int s = 0; s < 3; ++s) {
+      Eigen::VectorXd r(m);
+      Eigen::MatrixXd C = Eigen::MatrixXd::Zero(m, m);
+      for (Eigen::Index a = 0; a < m; ++a) {
+        const std::size_t i = test[static_cast<std::size_t>(a)];
+        r(a) = table.rows[i].mean(s) -
+               predict_outputs(device, geoms[i], options.local_gravity)(s);
+        C(a, a) = se[i](s) * se[i](s);
+        if (options.noise_model.white()) continue;
+        for (Eigen::Index b = 0; b <= a; ++b) {
+          const DwellRecord& ra = table.rows[i];
+          const DwellRecord& rb = table.rows[test[static_cast<std::size_t>(b)]];
+          const double k = options.noise_model.slow_covariance(s, ra.t_start_s, ra.t_end_s,
+                                                               rb.t_start_s, rb.t_end_s, t_first);
+          C(a, b) += k;
+          if (a != b) C(b, a) += k;
+        }
+      }
+      total += r.dot(C.ldlt().solve(r));
+    }
+    ++out.folds;
+    out.points += 3 * static_cast<int>(m);
+  }
+  if (out.points > 0) out.cv_chi2_per_point = total / out.points;
+  return out;
+}
+
+NoiseModel scale_slow_part_to_residuals(const PositionTable& table, const FitOptions& options) {
+  NoiseModel model = options.noise_model;
+  if (model.white() || table.rows.size() < 8) return model;
+  const Eigen::Index n = static_cast<Eigen::Index>(table.rows.size());
+  const double dof = static_cast<double>(n) - 4.0 - static_cast<double>(options.effects.size()) / 3.0;
+  // Per-axis generalized chi-square of the fit with the slow parts scaled by c.
+  auto chi2_with = [&](const Eigen::Vector3d& c) {
+    FitOptions o = options;
+    for (int s = 0; s < 3; ++s) {
+      o.noise_model.axes[s].gm_sigma = model.axes[s].gm_sigma * std::sqrt(c(s));
+      o.noise_model.axes[s].rw_density = model.axes[s].rw_density * std::sqrt(c(s));
+    }
+    const FitResult f = fit(table, o);
+    Eigen::Vector3d chi2 = Eigen::Vector3d::Zero();
+    Eigen::VectorXd z(3 * n);
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (int s = 0; s < 3; ++s)
+        z(3 * i + s) = f.residuals[static_cast<std::size_t>(i)](s) /
+                       f.standard_errors[static_cast<std::size_t>(i)](s);
+    if (f.correlation) f.correlation->whiten(z);
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (int s = 0; s < 3; ++s) chi2(s) += z(3 * i + s) * z(3 * i + s);
+    return chi2;
+  };
+  const Eigen::Vector3d at_one = chi2_with(Eigen::Vector3d::Ones());
+  Eigen::Vector3d lo = Eigen::Vector3d::Ones(), hi = Eigen::Vector3d::Ones();
+  std::array<bool, 3> scale{{false, false, false}};
+  for (int s = 0; s < 3; ++s) {
+    scale[s] = model.axes[s].slow() && at_one(s) > dof;
+    if (scale[s]) hi(s) = 1e4;
+  }
+  if (!scale[0] && !scale[1] && !scale[2]) return model;
+  // Bisection on log c, the three axes at once (their fits are independent).
+  for (int iteration = 0; iteration < 24; ++iteration) {
+    Eigen::Vector3d mid;
+    for (int s = 0; s < 3; ++s) mid(s) = scale[s] ? std::sqrt(lo(s) * hi(s)) : 1.0;
+    const Eigen::Vector3d chi2 = chi2_with(mid);
+    for (int s = 0; s < 3; ++s) {
+      if (!scale[s]) continue;
+      (chi2(s) > dof ? lo : hi)(s) = mid(s);
+    }
+  }
+  std::ostringstream note;
+  note << std::setprecision(3) << "; slow part scaled to the run's residuals by";
+  for (int s = 0; s < 3; ++s) {
+    const double c = scale[s] ? std::sqrt(lo(s) * hi(s)) : 1.0;
+    model.axes[s].gm_sigma *= std::sqrt(c);
+    model.axes[s].rw_density *= std::sqrt(c);
+    note << " " << c;
+  }
+  note << " (variance, u v w)";
+  model.source += note.str();
+  return model;
 }
 
 double noncentrality_for_power(double critical_chi2, double power) {
@@ -564,9 +753,16 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
   fo.model = FitModel::Joint;
   fo.local_gravity = options.local_gravity;
   fo.effects = options.base_effects;
+  fo.noise_model = options.noise_model;
+  // The rest's slow part, scaled up to the run's residuals when it falls short (see the header).
+  fo.noise_model = scale_slow_part_to_residuals(table, fo);
+  result.noise_model = fo.noise_model;
   FitResult current = fit(table, fo);
   result.before_fit = current;
   result.before = compute_gap(table, current, options.harmonics, options.time_bins);
+  const bool cross_validate = options.cv_folds >= 2;
+  if (cross_validate) result.before.cv = cross_validated_gap(table, fo, options.cv_folds);
+  double cv_current = result.before.cv.cv_chi2_per_point;
   std::vector<Effect> model_terms = options.base_effects;
 
   result.stop_reason = "max_effects reached";
@@ -606,10 +802,12 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
       result.steps.push_back(sc.step);
       break;
     }
-    // Refit the strongest few and keep the one that lowers chi2 most.
+    // Refit the strongest few and keep the one that lowers chi2 most among those the
+    // out-of-sample gap confirms (its cross-validated chi2 per point drops when it is added).
     int best = -1;
     double best_delta = -std::numeric_limits<double>::infinity();
     FitResult best_fit;
+    int refits = 0;
     for (int i = 0; i < std::min<int>(options.refit_top, static_cast<int>(significant.size()));
          ++i) {
       CandidateScore& cs = sc.step.candidates[significant[i]];
@@ -625,7 +823,16 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
         FitResult f = fit(table, o);
         if (!std::isfinite(f.chi2)) continue;
         cs.refit = true;
+        ++refits;
         cs.delta_chi2 = current.chi2 - f.chi2;
+        if (cross_validate) {
+          FitOptions cv_options = o;
+          cv_options.effects = f.effects;  // fitted values as the folds' starting values
+          cs.cv_before = cv_current;
+          cs.cv_after = cross_validated_gap(table, cv_options, options.cv_folds).cv_chi2_per_point;
+          // Not confirmed out of sample: the term fits the noise of the dwells it saw.
+          if (std::isfinite(cv_current) && !(cs.cv_after < cv_current)) continue;
+        }
         if (cs.delta_chi2 > best_delta) {
           best_delta = cs.delta_chi2;
           best = significant[i];
@@ -636,7 +843,10 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
       }
     }
     if (best < 0) {
-      result.stop_reason = "refits of the significant candidates failed";
+      result.stop_reason =
+          refits > 0 ? "the out-of-sample gap does not confirm the significant candidates (their "
+                       "cross-validated chi-square per point does not drop)"
+                     : "refits of the significant candidates failed";
       result.steps.push_back(sc.step);
       break;
     }
@@ -650,6 +860,8 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
     named.score_chi2 = chosen.score_chi2;
     named.delta_chi2 = chosen.delta_chi2;
     named.step = step + 1;
+    named.cv_before = chosen.cv_before;
+    named.cv_after = chosen.cv_after;
 
     // Ambiguity: candidates whose score direction nearly coincides with the chosen one.
     const int row = sc.identifiable_index[best];
@@ -695,11 +907,22 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
     }
     model_terms.push_back(added);
     current = best_fit;
+    cv_current = chosen.cv_after;
     result.steps.push_back(sc.step);
   }
 
   result.after_fit = current;
   result.after = compute_gap(table, current, options.harmonics, options.time_bins);
+  if (cross_validate) {
+    FitOptions final_options = fo;
+    final_options.effects = current.effects;
+    result.after.cv = cross_validated_gap(table, final_options, options.cv_folds);
+  }
+  {
+    AnalysisOptions used = options;
+    used.noise_model = fo.noise_model;
+    result.correlated_noise = correlated_noise_entry(table, current, used, result.after);
+  }
   for (NamedEffect& ne : result.effects) {
     for (std::size_t i = 0; i < current.effects.size(); ++i) {
       if (same_term(current.effects[i], ne.effect)) {

@@ -188,7 +188,24 @@ std::string Effect::label() const {
   return name() + "[" + target_name() + "]";
 }
 
+const std::vector<NoiseEntryInfo>& noise_entry_catalog() {
+  static const std::vector<NoiseEntryInfo> catalog = {
+      {kCorrelatedNoise,
+       "the noise of the dwell means is not white: a slow bias (bias instability, Gauss-Markov, "
+       "random walk) makes neighbouring dwells err together; a noise-model entry estimated from "
+       "the run's long rest, not a physical effect"},
+  };
+  return catalog;
+}
+
 Effect make_effect(const std::string& name, const std::string& target, double value) {
+  for (const NoiseEntryInfo& info : noise_entry_catalog()) {
+    if (name == info.name)
+      throw std::invalid_argument(
+          name + " is a noise-model entry, not an effect term: it is not simulated or fitted as "
+                 "a term; set the simulator's bias_gm_sigma / bias_gm_tau_s / bias_random_walk, "
+                 "or give the run a long rest (protocol initial_rest_s) for the noise model");
+  }
   for (const EffectInfo& info : effect_catalog()) {
     if (name != info.name) continue;
     Effect effect;

@@ -17,6 +17,20 @@
 //   and then the analysis should name the missing effect rather than let the uncertainty of
 //   that one accelerometer absorb it.)
 // - Residuals reported per row are measured minus model, m/s^2.
+// - Noise that is not white (DESIGN.md section 12; FitOptions::noise_model with a slow part):
+//   the joint fits use GENERALIZED least squares with the full covariance the noise model
+//   implies between the dwell means of each accelerometer (C = D R D, noise.h
+//   dwell_correlation), not merely dwell variances inflated by the slow part. Why: a slow bias
+//   makes neighbouring dwells err TOGETHER. Inflating each variance keeps the estimate's spread
+//   honest only if the errors were independent; here they are not, so the inflated fit still
+//   misstates the covariance of S and O (a common error of a whole phase acts like an offset,
+//   a smooth one like a harmonic), and its residuals stay correlated in time, which the
+//   discrepancy analysis would read as drift or angle effects. GLS weights the information
+//   correctly (the efficient estimate) and whitens the residuals, so the analysis' tests keep
+//   their chi-square distributions. Its cost is one Cholesky factor per accelerometer (rows^3 / 3;
+//   a 24-step run has 72 rows). eq4 fits each phase on its own, where cross-phase correlations
+//   do not fit its independent-sets construction; it inflates each dwell's variance by its slow
+//   part (variance of the mean over the dwell) instead.
 #include "accel_intrinsics/core/fit.h"
 
 #include <ceres/ceres.h>
@@ -412,8 +426,22 @@ void fill_residuals(FitResult& r, const PositionTable& table,
 // relative only and the residuals alone set the scale (unknown-variance least squares,
 // s^2 = chi2 / dof), so an exact fit reports an uncertainty at the round-off level, not 1 m/s^2.
 double chi2_scale(const FitResult& r, bool unit_weights) {
+  if (r.correlation) return std::max(1.0, r.reduced_chi2);
   if (unit_weights) return r.dof > 0 ? r.reduced_chi2 : 0.0;
   return std::max(1.0, r.reduced_chi2);
+}
+
+// With a correlation (GLS): chi2 = |L^-1 z|^2 of the normalized residuals z = r / se.
+void apply_correlation(FitResult& r, const std::shared_ptr<const DwellCorrelation>& corr) {
+  r.correlation = corr;
+  if (!corr) return;
+  Eigen::VectorXd z(3 * static_cast<Eigen::Index>(r.residuals.size()));
+  for (std::size_t i = 0; i < r.residuals.size(); ++i)
+    for (int s = 0; s < 3; ++s)
+      z(3 * static_cast<Eigen::Index>(i) + s) = r.residuals[i](s) / r.standard_errors[i](s);
+  corr->whiten(z);
+  r.chi2 = z.squaredNorm();
+  r.reduced_chi2 = r.dof > 0 ? r.chi2 / r.dof : 0.0;
 }
 
 // ---- joint, linear -----------------------------------------------------------------------
@@ -464,9 +492,45 @@ LinearJoint solve_joint_linear(const PositionTable& table, const std::vector<Eig
   return out;
 }
 
+// The same by generalized least squares: per accelerometer the rows h / se and the means / se
+// whitened by L_s^-1 (DwellCorrelation), then ordinary least squares.
+LinearJoint solve_joint_gls(const PositionTable& table, const std::vector<Eigen::Vector3d>& se,
+                            double g, const DwellCorrelation& corr) {
+  const Eigen::Index n = static_cast<Eigen::Index>(table.rows.size());
+  LinearJoint out;
+  out.covariance.setZero();
+  for (int s = 0; s < 3; ++s) {
+    Eigen::MatrixXd A(n, 4);
+    Eigen::VectorXd y(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const DwellRecord& row = table.rows[static_cast<std::size_t>(i)];
+      const Eigen::Vector3d f = specific_force_direction(row) * g;
+      const double inv = 1.0 / se[static_cast<std::size_t>(i)](s);
+      A.row(i) << f(0) * inv, f(1) * inv, f(2) * inv, inv;
+      y(i) = row.mean(s) * inv;
+    }
+    corr.L[s].triangularView<Eigen::Lower>().solveInPlace(A);
+    corr.L[s].triangularView<Eigen::Lower>().solveInPlace(y);
+    const Eigen::Matrix4d N = A.transpose() * A;
+    std::vector<std::string> names;
+    for (int c = 0; c < 3; ++c) names.push_back(linear_parameter_name(3 * s + c));
+    names.push_back(linear_parameter_name(9 + s));
+    const Eigen::Matrix4d inv = checked_inverse(N, names, "joint fit (generalized least squares)");
+    const Eigen::Vector4d x = A.colPivHouseholderQr().solve(y);
+    out.S.row(s) = x.head<3>().transpose();
+    out.O(s) = x(3);
+    const int idx[4] = {3 * s, 3 * s + 1, 3 * s + 2, 9 + s};
+    for (int a = 0; a < 4; ++a)
+      for (int c = 0; c < 4; ++c) out.covariance(idx[a], idx[c]) = inv(a, c);
+  }
+  return out;
+}
+
 FitResult fit_joint_linear(const PositionTable& table, const std::vector<Eigen::Vector3d>& se,
-                           bool unit_weights, const FitOptions& options) {
-  const LinearJoint lin = solve_joint_linear(table, se, options.local_gravity);
+                           bool unit_weights, const FitOptions& options,
+                           const std::shared_ptr<const DwellCorrelation>& corr) {
+  const LinearJoint lin = corr ? solve_joint_gls(table, se, options.local_gravity, *corr)
+                               : solve_joint_linear(table, se, options.local_gravity);
   FitResult r;
   r.model = FitModel::Joint;
   r.local_gravity = options.local_gravity;
@@ -477,6 +541,7 @@ FitResult fit_joint_linear(const PositionTable& table, const std::vector<Eigen::
     const DwellRecord& row = table.rows[i];
     return lin.S * (specific_force_direction(row) * g) + lin.O;
   });
+  apply_correlation(r, corr);
   finish_result(r, lin.covariance * chi2_scale(r, unit_weights));
   for (int p = 0; p < 3; ++p) {
     r.offset_per_phase.col(p) = r.O;
@@ -582,9 +647,102 @@ ceres::Solver::Summary solve_effects_problem(EffectsProblem& prob) {
   return summary;
 }
 
+// Normalized residuals z and their Jacobian (dense, rows 3 row + s) at the problem's current
+// parameter values.
+bool evaluate_effects_problem(EffectsProblem& prob, Eigen::VectorXd* z, Eigen::MatrixXd* J,
+                              int num_params) {
+  ceres::Problem::EvaluateOptions eo;
+  eo.parameter_blocks = prob.blocks;
+  eo.num_threads = 1;
+  double cost = 0.0;
+  std::vector<double> normalized;
+  ceres::CRSMatrix jac;
+  if (!prob.problem.Evaluate(eo, &cost, &normalized, nullptr, J ? &jac : nullptr)) return false;
+  *z = Eigen::Map<const Eigen::VectorXd>(normalized.data(),
+                                         static_cast<Eigen::Index>(normalized.size()));
+  if (J) {
+    J->setZero(jac.num_rows, num_params);
+    for (int row = 0; row < jac.num_rows; ++row)
+      for (int idx = jac.rows[row]; idx < jac.rows[row + 1]; ++idx)
+        (*J)(row, jac.cols[idx]) = jac.values[idx];
+  }
+  return true;
+}
+
+std::vector<double*> parameter_pointers(EffectsProblem& prob) {
+  std::vector<double*> out;
+  for (int k = 0; k < 9; ++k) out.push_back(&prob.S[k]);
+  for (int k = 0; k < 3; ++k) out.push_back(&prob.O[k]);
+  for (double& v : prob.values) out.push_back(&v);
+  return out;
+}
+
+// Generalized least squares with effect terms: minimizes |L^-1 z(theta)|^2 by Levenberg-Marquardt
+// from the white (Ceres) solution, with the Jacobian of the one model that Ceres evaluates.
+// The models are mildly non-linear and the start is close, so a few steps converge.
+void refine_gls(EffectsProblem& prob, const DwellCorrelation& corr, int num_params,
+                const std::string& label) {
+  const std::vector<double*> params = parameter_pointers(prob);
+  auto get = [&]() {
+    Eigen::VectorXd x(num_params);
+    for (int k = 0; k < num_params; ++k) x(k) = *params[k];
+    return x;
+  };
+  auto set = [&](const Eigen::VectorXd& x) {
+    for (int k = 0; k < num_params; ++k) *params[k] = x(k);
+  };
+  Eigen::VectorXd z;
+  Eigen::MatrixXd J;
+  if (!evaluate_effects_problem(prob, &z, &J, num_params))
+    throw FitError("evaluating " + label + " failed");
+  corr.whiten(z);
+  corr.whiten_columns(J);
+  double cost = z.squaredNorm();
+  double mu = 1e-6;
+  for (int iteration = 0; iteration < 100; ++iteration) {
+    const Eigen::MatrixXd N = J.transpose() * J;
+    const Eigen::VectorXd grad = J.transpose() * z;
+    const Eigen::VectorXd x = get();
+    bool improved = false;
+    for (int tries = 0; tries < 20 && !improved; ++tries) {
+      Eigen::MatrixXd damped = N;
+      damped.diagonal() += mu * N.diagonal().cwiseMax(1e-300);
+      const Eigen::VectorXd step = -damped.ldlt().solve(grad);
+      if (!step.allFinite()) {
+        mu *= 10.0;
+        continue;
+      }
+      set(x + step);
+      Eigen::VectorXd z_new;
+      Eigen::MatrixXd J_new;
+      if (evaluate_effects_problem(prob, &z_new, &J_new, num_params)) {
+        corr.whiten(z_new);
+        const double new_cost = z_new.squaredNorm();
+        if (new_cost <= cost) {
+          corr.whiten_columns(J_new);
+          const double drop = cost - new_cost;
+          z = z_new;
+          J = J_new;
+          cost = new_cost;
+          mu = std::max(1e-12, mu / 10.0);
+          improved = true;
+          const double rel_step =
+              step.cwiseAbs().cwiseQuotient(x.cwiseAbs().cwiseMax(1e-12)).maxCoeff();
+          if (drop <= 1e-14 * std::max(1.0, cost) || rel_step < 1e-13) return;
+          break;
+        }
+      }
+      set(x);
+      mu *= 10.0;
+    }
+    if (!improved) return;  // no step lowers the cost: at the minimum (to round-off)
+  }
+}
+
 FitResult fit_joint_effects(const PositionTable& table, const std::vector<Eigen::Vector3d>& se,
                             bool unit_weights, const std::vector<DwellGeometry>& geoms,
-                            const FitOptions& options) {
+                            const FitOptions& options,
+                            const std::shared_ptr<const DwellCorrelation>& corr) {
   std::string label = "joint";
   for (const Effect& e : options.effects) label += "+" + e.label();
   const std::size_t k = options.effects.size();
@@ -605,29 +763,22 @@ FitResult fit_joint_effects(const PositionTable& table, const std::vector<Eigen:
   if (!summary.IsSolutionUsable())
     throw FitError("the Ceres solve of " + label + " failed: " + summary.message);
   r.solver_message = summary.BriefReport();
+  if (corr) {
+    refine_gls(prob, *corr, num_params, label);
+    r.solver_message += " (then generalized least squares, Levenberg-Marquardt)";
+  }
 
   for (int j = 0; j < 9; ++j) r.S(j / 3, j % 3) = prob.S[j];
   for (int s = 0; s < 3; ++s) r.O(s) = prob.O[s];
   for (std::size_t i = 0; i < k; ++i) r.effects[i].value = prob.values[i];
 
-  // J^T W J from the Jacobian of the normalized residuals at the solution.
-  ceres::Problem::EvaluateOptions eo;
-  eo.parameter_blocks = prob.blocks;
-  eo.num_threads = 1;
-  double cost = 0.0;
-  std::vector<double> normalized;
-  ceres::CRSMatrix jac;
-  if (!prob.problem.Evaluate(eo, &cost, &normalized, nullptr, &jac))
+  // J^T W J from the Jacobian of the normalized residuals at the solution (whitened for GLS).
+  Eigen::VectorXd normalized;
+  Eigen::MatrixXd J;
+  if (!evaluate_effects_problem(prob, &normalized, &J, num_params))
     throw FitError("evaluating the Jacobian of " + label + " failed");
-  Eigen::MatrixXd JtJ = Eigen::MatrixXd::Zero(num_params, num_params);
-  Eigen::VectorXd jrow(num_params);
-  for (int row = 0; row < jac.num_rows; ++row) {
-    jrow.setZero();
-    for (int idx = jac.rows[row]; idx < jac.rows[row + 1]; ++idx)
-      jrow(jac.cols[idx]) = jac.values[idx];
-    JtJ.selfadjointView<Eigen::Lower>().rankUpdate(jrow);
-  }
-  JtJ = JtJ.selfadjointView<Eigen::Lower>();
+  if (corr) corr->whiten_columns(J);
+  const Eigen::MatrixXd JtJ = J.transpose() * J;
   std::vector<std::string> names;
   for (int j = 0; j < kNumLinear; ++j) names.push_back(linear_parameter_name(j));
   for (const Effect& e : options.effects) names.push_back(e.label());
@@ -636,9 +787,10 @@ FitResult fit_joint_effects(const PositionTable& table, const std::vector<Eigen:
   // Residuals as measured minus model: the normalized Ceres residual times -se.
   fill_residuals(r, table, se, num_params, [&](std::size_t i) -> Eigen::Vector3d {
     return table.rows[i].mean +
-           Eigen::Vector3d(normalized[3 * i], normalized[3 * i + 1], normalized[3 * i + 2])
+           Eigen::Vector3d(normalized(3 * i), normalized(3 * i + 1), normalized(3 * i + 2))
                .cwiseProduct(se[i]);
   });
+  apply_correlation(r, corr);
   const Eigen::MatrixXd cov = cov_unscaled * chi2_scale(r, unit_weights);
   finish_result(r, cov.topLeftCorner<kNumLinear, kNumLinear>());
   r.effects_std.resize(k);
@@ -784,7 +936,24 @@ FitResult fit(const PositionTable& table, const FitOptions& options) {
       throw FitError("effect terms need known orientations; a tumble fit has none");
     TumbleFitOptions tumble;
     tumble.local_gravity = options.local_gravity;
-    return fit_tumble(table, tumble);
+    if (options.noise_model.white()) return fit_tumble(table, tumble);
+    // Noise that is not white: each rest's variance gains the slow part of its mean (inflated
+    // variances, not GLS: a hand tumble's rests are few, long and far apart in time, so their
+    // correlation is small against their own slow variance, and the tumble fit's weights are
+    // per rest). The row std is rescaled so that std / sqrt(n) is the inflated standard error.
+    PositionTable inflated = table;
+    for (DwellRecord& row : inflated.rows) {
+      const double n = static_cast<double>(std::max<std::uint64_t>(row.n, 1));
+      for (int s = 0; s < 3; ++s) {
+        const double slow = options.noise_model.slow_covariance(s, row.t_start_s, row.t_end_s,
+                                                                row.t_start_s, row.t_end_s,
+                                                                row.t_start_s);
+        row.std(s) = std::sqrt(n * (row.std(s) * row.std(s) / n + slow));
+      }
+    }
+    FitResult r = fit_tumble(inflated, tumble);
+    r.noise_model = options.noise_model;
+    return r;
   }
   if (options.model == FitModel::Eq4) {
     for (std::size_t i = 0; i < table.rows.size(); ++i) {
@@ -798,20 +967,37 @@ FitResult fit(const PositionTable& table, const FitOptions& options) {
     validate_joint_geometry(table, options.min_positions_per_phase);
   }
   bool unit_weights = false;
-  const std::vector<Eigen::Vector3d> se = standard_errors(table, &unit_weights);
+  std::vector<Eigen::Vector3d> se = standard_errors(table, &unit_weights);
+  // Noise that is not white: GLS for the joint fits, inflated variances for eq4 (see the top).
+  std::shared_ptr<const DwellCorrelation> corr;
+  if (!options.noise_model.white() && !unit_weights) {
+    if (options.model == FitModel::Eq4) {
+      for (std::size_t i = 0; i < se.size(); ++i) {
+        const DwellRecord& row = table.rows[i];
+        for (int s = 0; s < 3; ++s)
+          se[i](s) = std::sqrt(se[i](s) * se[i](s) +
+                               options.noise_model.slow_covariance(s, row.t_start_s, row.t_end_s,
+                                                                   row.t_start_s, row.t_end_s,
+                                                                   row.t_start_s));
+      }
+    } else {
+      corr = dwell_correlation(table, se, options.noise_model);
+    }
+  }
   FitResult r;
   if (options.model == FitModel::Eq4) {
     r = fit_eq4(table, se, unit_weights, options);
   } else if (options.effects.empty()) {
-    r = fit_joint_linear(table, se, unit_weights, options);
+    r = fit_joint_linear(table, se, unit_weights, options, corr);
   } else {
     const std::vector<DwellGeometry> geoms = dwell_geometries(table);
     if (geoms.size() != table.rows.size())
       throw FitError("dwell_geometries returned " + std::to_string(geoms.size()) + " entries for " +
                      std::to_string(table.rows.size()) + " rows");
     validate_effects(options.effects, options.model, geoms);
-    r = fit_joint_effects(table, se, unit_weights, geoms, options);
+    r = fit_joint_effects(table, se, unit_weights, geoms, options, corr);
   }
+  r.noise_model = unit_weights ? NoiseModel() : options.noise_model;
   r.positions = positions_per_phase(table);
   return r;
 }

@@ -1,5 +1,6 @@
 #include "accel_intrinsics/core/protocol.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -54,6 +55,7 @@ void validate(const ProtocolOptions& options) {
   require_time(options.settle_s, "settle_s", true);
   require_time(options.dwell_s, "dwell_s", false);
   require_time(options.phase_change_s, "phase_change_s", true);
+  require_time(options.initial_rest_s, "initial_rest_s", true);
   // two_way and closing_position combine freely: the closing position tops the up-sweep.
 }
 
@@ -92,7 +94,7 @@ std::vector<ScheduledPosition> build_schedule(const ProtocolOptions& options) {
       t += first_of_phase ? options.phase_change_s : options.move_s;
       t += options.settle_s;
       position.settled_s = t;
-      t += options.dwell_s;
+      t += schedule.empty() ? std::max(options.dwell_s, options.initial_rest_s) : options.dwell_s;
       position.dwell_end_s = t;
       schedule.push_back(position);
       first_of_phase = false;

@@ -25,11 +25,13 @@ std::vector<ScheduledPosition> simulation_schedule(const SimulationOptions& opti
   double shift = 0.0;  // accumulated (dwell - protocol.dwell_s) of the positions before
   for (std::size_t i = 0; i < schedule.size(); ++i) {
     ScheduledPosition& p = schedule[i];
-    const double dwell = options.dwell_s_pattern[i % options.dwell_s_pattern.size()];
+    double dwell = options.dwell_s_pattern[i % options.dwell_s_pattern.size()];
+    if (i == 0) dwell = std::max(dwell, options.protocol.initial_rest_s);
+    const double scheduled = p.dwell_end_s - p.settled_s;
     p.move_start_s += shift;
     p.settled_s += shift;
     p.dwell_end_s = p.settled_s + dwell;
-    shift += dwell - options.protocol.dwell_s;
+    shift += dwell - scheduled;
   }
   return schedule;
 }
@@ -70,6 +72,14 @@ void validate(const SimulationOptions& options) {
     throw std::invalid_argument(
         "simulation: dwell_s * rate_hz must give at least two samples per dwell");
   }
+  for (double v : {options.bias_gm_sigma, options.bias_gm_tau_s, options.bias_random_walk}) {
+    if (!std::isfinite(v) || v < 0.0)
+      throw std::invalid_argument(
+          "simulation: bias_gm_sigma, bias_gm_tau_s and bias_random_walk must be finite and "
+          "non-negative");
+  }
+  if (options.bias_gm_sigma > 0.0 && !(options.bias_gm_tau_s > 0.0))
+    throw std::invalid_argument("simulation: bias_gm_sigma needs a positive bias_gm_tau_s");
   if (!options.noise_scale.allFinite() || options.noise_scale.minCoeff() < 0.0) {
     throw std::invalid_argument("simulation: noise_scale must be finite and non-negative");
   }
@@ -99,7 +109,48 @@ double timing_lag_s(const Device& device) {
   return lag;
 }
 
+bool has_slow_bias(const SimulationOptions& o) {
+  return o.bias_gm_sigma > 0.0 || o.bias_random_walk > 0.0;
+}
+
+// The slow bias at the sample times k / rate_hz, k = 0..count (exact discretization: the
+// Gauss-Markov process starts from its stationary distribution, the random walk from 0), from
+// its own random stream.
+std::vector<Eigen::Vector3d> slow_bias_path(const SimulationOptions& o, std::uint64_t count) {
+  std::vector<Eigen::Vector3d> path(count + 1, Eigen::Vector3d::Zero());
+  if (!has_slow_bias(o)) return path;
+  std::mt19937_64 rng(o.seed ^ 0x5bd1e9955bd1e995ull);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const double dt = 1.0 / o.rate_hz;
+  const double phi = o.bias_gm_sigma > 0.0 ? std::exp(-dt / o.bias_gm_tau_s) : 0.0;
+  const double gm_step = o.bias_gm_sigma * std::sqrt(std::max(0.0, 1.0 - phi * phi));
+  const double rw_step = o.bias_random_walk * std::sqrt(dt);
+  Eigen::Vector3d gm, rw = Eigen::Vector3d::Zero();
+  for (int s = 0; s < 3; ++s) gm(s) = o.bias_gm_sigma * normal(rng);
+  for (std::uint64_t k = 0; k <= count; ++k) {
+    if (k > 0) {
+      for (int s = 0; s < 3; ++s) {
+        gm(s) = phi * gm(s) + gm_step * normal(rng);
+        rw(s) += rw_step * normal(rng);
+      }
+    }
+    path[k] = gm + rw;
+  }
+  return path;
+}
+
 }  // namespace
+
+NoiseModel true_noise_model(const SimulationOptions& options) {
+  NoiseModel m = white_noise_model(sample_noise_stds(options), options.rate_hz);
+  for (int s = 0; s < 3; ++s) {
+    m.axes[s].gm_sigma = options.bias_gm_sigma;
+    m.axes[s].gm_tau_s = options.bias_gm_sigma > 0.0 ? options.bias_gm_tau_s : 0.0;
+    m.axes[s].rw_density = options.bias_random_walk;
+  }
+  m.source = "simulation truth";
+  return m;
+}
 
 double TemperatureProfile::at(double t_s) const {
   return start_c + rate_c_per_s * t_s + sine_amplitude_c * std::sin(2.0 * kPi * t_s / sine_period_s);
@@ -169,9 +220,15 @@ double move_fraction(double t_s, double move_start_s, double settled_s) {
   return 0.5 - 0.5 * std::cos(x * kPi);
 }
 
-PositionTable simulate_position_table(const SimulationOptions& options) {
+PositionTable simulate_position_table(const SimulationOptions& options, RestSamples* first_dwell) {
   validate(options);
   const std::vector<ScheduledPosition> schedule = simulation_schedule(options);
+  const std::vector<Eigen::Vector3d> bias =
+      has_slow_bias(options)
+          ? slow_bias_path(options, samples_in_window(0.0, schedule.back().dwell_end_s,
+                                                      options.rate_hz))
+          : std::vector<Eigen::Vector3d>();
+  if (first_dwell) *first_dwell = RestSamples();
   std::mt19937_64 rng(options.seed);
   std::normal_distribution<double> normal(0.0, 1.0);
   const Eigen::Vector3d sigmas = sample_noise_stds(options);
@@ -203,8 +260,32 @@ PositionTable simulate_position_table(const SimulationOptions& options) {
                                 normal(temperature_rng);
       }
     }
-    const Eigen::Vector3d truth = predict_outputs(options.truth, geom, options.local_gravity);
+    Eigen::Vector3d truth = predict_outputs(options.truth, geom, options.local_gravity);
     const double n = static_cast<double>(row.n);
+    const auto k0 = static_cast<std::uint64_t>(std::ceil(row.t_start_s * options.rate_hz - 1e-9));
+    if (!bias.empty() && row.n > 0) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (std::uint64_t k = k0; k < k0 + row.n && k < bias.size(); ++k) sum += bias[k];
+      if (!(first_dwell && table.rows.empty())) truth += sum / n;
+    }
+    if (first_dwell && table.rows.empty()) {
+      // The samples one by one (white noise from the same stream, the bias per sample).
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero(), sum_sq = Eigen::Vector3d::Zero();
+      for (std::uint64_t k = k0; k < k0 + row.n; ++k) {
+        Eigen::Vector3d x = truth;
+        if (!bias.empty() && k < bias.size()) x += bias[k];
+        for (int s = 0; s < 3; ++s) x(s) += sigmas(s) * normal(rng);
+        first_dwell->stamps_s.push_back(static_cast<double>(k) / options.rate_hz);
+        first_dwell->outputs.push_back(x);
+        sum += x;
+      }
+      row.mean = sum / n;
+      for (const Eigen::Vector3d& x : first_dwell->outputs)
+        sum_sq += (x - row.mean).cwiseAbs2();
+      if (row.n >= 2) row.std = (sum_sq / (n - 1.0)).cwiseSqrt();
+      table.rows.push_back(row);
+      continue;
+    }
     for (int k = 0; k < 3; ++k) {
       const double sigma = sigmas(k);
       row.mean(k) = truth(k) + sigma / std::sqrt(n) * normal(rng);
@@ -260,6 +341,7 @@ Recording simulate_recording(const SimulationOptions& options) {
   }
   const auto count = static_cast<std::uint64_t>(std::floor(end_s * options.rate_hz));
   recording.samples.reserve(count + 1);
+  const std::vector<Eigen::Vector3d> bias = slow_bias_path(options, count);
   for (std::uint64_t k = 0; k <= count; ++k) {
     const double t_true = static_cast<double>(k) / options.rate_hz;
     const GimbalPose pose = gimbal_pose_at(schedule, t_true);
@@ -270,7 +352,7 @@ Recording simulate_recording(const SimulationOptions& options) {
     sample.stamp_s = t_true + lag;  // timing_lag: the IMU stamps its samples late
     sample.outputs = predict_outputs(options.truth, geom, options.local_gravity);
     for (int i = 0; i < 3; ++i) {
-      double value = sample.outputs(i) + sigma(i) * normal(rng);
+      double value = sample.outputs(i) + bias[k](i) + sigma(i) * normal(rng);
       if (options.quantization > 0.0)
         value = options.quantization * std::round(value / options.quantization);
       sample.outputs(i) = value;

@@ -20,6 +20,10 @@ using core::CellGap;
 using core::Gap;
 using core::GapSummary;
 
+nlohmann::json finite_or_null(double x) {
+  return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr);
+}
+
 nlohmann::json gap_summary_json(const GapSummary& g) {
   return {{"reduced_chi2", g.reduced_chi2},
           {"rms", g.rms},
@@ -32,6 +36,11 @@ nlohmann::json gap_summary_json(const GapSummary& g) {
 
 nlohmann::json gap_json(const Gap& gap) {
   nlohmann::json j = gap_summary_json(gap.summary);
+  // Out of sample (DESIGN.md section 12): null when not computed.
+  j["cv_chi2_per_point"] = std::isfinite(gap.cv.cv_chi2_per_point)
+                               ? nlohmann::json(gap.cv.cv_chi2_per_point)
+                               : nlohmann::json(nullptr);
+  j["cv_folds"] = gap.cv.folds;
   nlohmann::json cells = nlohmann::json::array();
   for (const CellGap& c : gap.cells) {
     cells.push_back({{"phase", core::phase_name(static_cast<core::Phase>(c.phase))},
@@ -69,6 +78,10 @@ nlohmann::json candidate_json(const CandidateScore& c) {
     j["p_value"] = c.p_adjusted;
     j["detection_threshold"] = c.detection_threshold;
     if (c.refit) j["delta_chi2"] = c.delta_chi2;
+    if (c.refit && std::isfinite(c.cv_after)) {
+      j["cv_chi2_per_point_before"] = finite_or_null(c.cv_before);
+      j["cv_chi2_per_point_after"] = c.cv_after;
+    }
   }
   j["unit"] = core::effect_info(c.effect.kind).unit;
   return j;
@@ -77,6 +90,24 @@ nlohmann::json candidate_json(const CandidateScore& c) {
 }  // namespace
 
 namespace detail {
+
+nlohmann::json noise_model_json(const core::NoiseModel& m) {
+  if (m.white()) return "white";
+  nlohmann::json axes = nlohmann::json::object();
+  for (int s = 0; s < 3; ++s) {
+    const core::AxisNoiseModel& a = m.axes[s];
+    axes[core::accelerometer_name(s)] = {{"white_std", a.white_std},
+                                         {"gm_sigma", a.gm_sigma},
+                                         {"gm_tau_s", a.gm_tau_s},
+                                         {"rw_density", a.rw_density}};
+  }
+  return {{"kind", m.kind()},
+          {"source", m.source},
+          {"rate_hz", m.rate_hz},
+          {"rest", {{"t_start", m.rest_t_start_s}, {"t_end", m.rest_t_end_s},
+                    {"samples", m.rest_samples}}},
+          {"axes", axes}};
+}
 
 nlohmann::json analysis_json(const AnalysisResult& r) {
   nlohmann::json j;
@@ -93,7 +124,9 @@ nlohmann::json analysis_json(const AnalysisResult& r) {
                        {"delta_chi2", e.delta_chi2},
                        {"step", e.step},
                        {"closest_alternative", e.closest_alternative},
-                       {"closest_correlation", e.closest_correlation}});
+                       {"closest_correlation", e.closest_correlation},
+                       {"cv_chi2_per_point_before", finite_or_null(e.cv_before)},
+                       {"cv_chi2_per_point_after", finite_or_null(e.cv_after)}});
   }
   j["effects"] = effects;
   nlohmann::json amb = nlohmann::json::array();
@@ -105,6 +138,17 @@ nlohmann::json analysis_json(const AnalysisResult& r) {
   }
   j["ambiguous"] = amb;
   j["gap"] = {{"before", gap_json(r.before)}, {"after", gap_json(r.after)}};
+  j["noise_model"] = noise_model_json(r.noise_model);
+  const core::NoiseEntry& cn = r.correlated_noise;
+  j["noise_entries"] = nlohmann::json::array(
+      {{{"name", cn.name},
+        {"named", cn.named},
+        {"noise_model", cn.noise_model},
+        {"white_reduced_chi2", cn.white_reduced_chi2},
+        {"white_p_value", cn.white_p_value},
+        {"model_reduced_chi2", cn.model_reduced_chi2},
+        {"model_p_value", cn.model_p_value},
+        {"reason", cn.reason}}});
   j["model_before"] = r.before_fit.model_label();
   j["model_after"] = r.after_fit.model_label();
   j["local_gravity"] = r.local_gravity;
@@ -195,6 +239,23 @@ void write_analysis_report(std::ostream& out, const AnalysisResult& r) {
       << std::setprecision(4) << " m/s^2)\n";
   gap_line("gap before", r.before_fit.model_label(), r.before.summary);
   gap_line("gap after ", r.after_fit.model_label(), r.after.summary);
+  if (std::isfinite(r.before.cv.cv_chi2_per_point))
+    out << "  out of sample (" << r.before.cv.folds
+        << " time-block folds): cross-validated chi2 per point before " << r.before.cv.cv_chi2_per_point
+        << ", after " << r.after.cv.cv_chi2_per_point << "\n";
+  out << "  noise model: " << r.noise_model.kind();
+  if (!r.noise_model.white()) {
+    out << " (from " << r.noise_model.source << "; per u v w: sigma";
+    for (const core::AxisNoiseModel& a : r.noise_model.axes) out << " " << a.gm_sigma * 1e3;
+    out << " mm/s^2, tau";
+    for (const core::AxisNoiseModel& a : r.noise_model.axes) out << " " << a.gm_tau_s;
+    out << " s, random walk";
+    for (const core::AxisNoiseModel& a : r.noise_model.axes) out << " " << a.rw_density * 1e3;
+    out << " (mm/s^2)/sqrt(s))";
+  }
+  out << "\n  correlated_noise (noise-model entry): "
+      << (r.correlated_noise.named ? "named" : "not named") << " (white reduced chi2 "
+      << r.correlated_noise.white_reduced_chi2 << "; " << r.correlated_noise.reason << ")\n";
   // Where the gap was: the three worst phase x accelerometer cells and their strongest harmonic.
   std::vector<CellGap> cells = r.before.cells;
   std::sort(cells.begin(), cells.end(),

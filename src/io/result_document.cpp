@@ -354,6 +354,7 @@ nlohmann::json fit_json(const core::FitResult& result) {
                       {"std", number(std_value)}});
   }
   j["fitted_effects"] = fitted;
+  j["noise_model"] = noise_model_json(result.noise_model);
   return j;
 }
 

@@ -87,6 +87,19 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
   out << "\n  reduced chi2:  " << std::setprecision(6) << r.reduced_chi2 << " (chi2 " << r.chi2
       << ", dof " << r.dof << ")\n";
   out << "  residual rms:  " << std::setprecision(6) << r.residual_rms << " " << output_unit << "\n";
+  // The noise the weights assumed (DESIGN.md section 12): white, or the model of the long rest.
+  out << "  noise model:   " << r.noise_model.kind();
+  if (!r.noise_model.white()) {
+    out << std::setprecision(3) << " (" << r.noise_model.source
+        << "; generalized least squares; u v w: Gauss-Markov sigma";
+    for (const core::AxisNoiseModel& a : r.noise_model.axes) out << " " << a.gm_sigma;
+    out << " " << output_unit << ", tau";
+    for (const core::AxisNoiseModel& a : r.noise_model.axes) out << " " << a.gm_tau_s;
+    out << " s, random walk";
+    for (const core::AxisNoiseModel& a : r.noise_model.axes) out << " " << a.rw_density;
+    out << " " << output_unit << "/sqrt(s))";
+  }
+  out << "\n";
   out.flush();
 }
 

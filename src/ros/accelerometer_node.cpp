@@ -48,6 +48,9 @@ AccelerometerOptions AccelerometerOptions::load(const ros::NodeHandle& pnh) {
   s.truth.O += offset_per_day * age_days;
   read_param(pnh, "rate_hz", &s.rate_hz);
   read_param(pnh, "noise_density", &s.noise_density);
+  read_param(pnh, "bias/gm_sigma", &s.bias_gm_sigma);
+  read_param(pnh, "bias/gm_tau_s", &s.bias_gm_tau_s);
+  read_param(pnh, "bias/random_walk", &s.bias_random_walk);
   read_param(pnh, "quantization", &s.quantization);
   read_param(pnh, "local_gravity", &s.local_gravity);
   int seed = 1;

@@ -10,6 +10,7 @@
 #include <iomanip>
 #include <memory>
 #include <ostream>
+#include <optional>
 #include <sstream>
 #include <vector>
 
@@ -17,6 +18,7 @@
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/rest_detection.h"
+#include "accel_intrinsics/core/noise.h"
 #include "accel_intrinsics/core/samples_file.h"
 #include "accel_intrinsics/core/tumble.h"
 #include "accel_intrinsics/io/atomic_file.h"
@@ -49,6 +51,9 @@ struct Input {
   io::ResultContext context;  // input description, complete, warnings
   bool from_bag = false;
   core::RawStreams raw;  // bag with --analyze: for the timing-lag estimate
+  // From the run's long rest (DESIGN.md section 12: a dwell at least 10 times the median), when
+  // the input has raw samples (a bag): what the fit and the analysis weight the dwells with.
+  std::optional<core::NoiseModel> noise_model;
   std::string read_as;   // how the input was taken, when not obvious (prefixes a fit failure)
 };
 
@@ -102,6 +107,23 @@ void rests_from_stream(std::vector<core::ImuSample> samples, const OfflineFitArg
   input->table.time_origin_s = samples.front().stamp_s;
   input->context.rest_detection = found;
   input->context.rest_min_s = args.rest_min_s;
+  // The noise model of the first rest of at least 30 s, when there is one (DESIGN.md section 12):
+  // the tumble fit then adds its slow part to each rest's variance.
+  if (core::find_long_rest(input->table)) {
+    std::vector<double> stamps;
+    std::vector<Eigen::Vector3d> outputs;
+    stamps.reserve(samples.size());
+    outputs.reserve(samples.size());
+    for (const core::ImuSample& x : samples) {
+      stamps.push_back(x.stamp_s);
+      outputs.push_back(x.outputs);
+    }
+    try {
+      input->noise_model = core::noise_model_of_run(input->table, stamps, outputs);
+    } catch (const std::invalid_argument&) {
+      // Too short a record for a model: white, as before.
+    }
+  }
 }
 
 Input read_samples_input(const OfflineFitArguments& args) {
@@ -269,6 +291,38 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
       throw Failure{kOfflineFitBadInput, "no IMU messages on '" + st.imu_topic + "' in " + st.path};
     input.read_as = "no gimbal commands in " + st.path + ", read as a hand tumble: ";
     rests_from_stream(std::move(samples), args, &input);
+  } else if (core::find_long_rest(input.table)) {
+    // The noise model needs the raw samples of the long rest, not only its mean and std: with
+    // --analyze they were kept, otherwise the bags are read once more for them (only runs that
+    // have a long rest pay for it).
+    std::vector<core::ImuSample> kept;
+    const std::vector<core::ImuSample>* samples = &input.raw.samples;
+    if (!args.analyze) {
+      BagInputOptions again = options;
+      again.raw_samples = &kept;
+      again.raw_commands = nullptr;
+      again.clock_check = nullptr;
+      try {
+        read_bags(args.bags, again);
+      } catch (const BagInputError& e) {
+        throw Failure{kOfflineFitBadInput, as_one_line(e.what())};
+      }
+      samples = &kept;
+    }
+    std::vector<double> stamps;
+    std::vector<Eigen::Vector3d> outputs;
+    const std::optional<core::LongRest> rest = core::find_long_rest(input.table);
+    for (const core::ImuSample& x : *samples) {
+      if (x.stamp_s < rest->t_start_s || x.stamp_s > rest->t_end_s) continue;
+      stamps.push_back(x.stamp_s);
+      outputs.push_back(x.outputs);
+    }
+    try {
+      input.noise_model = core::noise_model_of_run(input.table, stamps, outputs);
+    } catch (const std::invalid_argument& e) {
+      err << kOfflineFitProgram << ": note: no noise model from the long rest: " << e.what()
+          << std::endl;
+    }
   }
   io::BagInputDescription bag;
   bag.imu_topic = st.imu_topic;
@@ -529,6 +583,10 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
                                      ? "offline_fit --gravity"
                                      : "standard gravity (offline_fit default; no --gravity given)";
 
+  if (input.noise_model) {
+    options.fit.noise_model = *input.noise_model;
+    options.analysis.noise_model = *input.noise_model;
+  }
   core::CalibrationReport report;
   try {
     const bool raw_usable = input.from_bag && !input.raw.commands.empty();

@@ -100,6 +100,7 @@ core::ProtocolOptions read_protocol(const ros::NodeHandle& nh) {
   read_param(nh, "phase_change_s", &p.phase_change_s);
   read_param(nh, "two_way", &p.two_way);
   read_param(nh, "closing_position", &p.closing_position);
+  read_param(nh, "initial_rest_s", &p.initial_rest_s);
   try {
     core::validate(p);
   } catch (const std::invalid_argument& e) {

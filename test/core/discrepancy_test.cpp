@@ -83,6 +83,10 @@ TEST_P(DiscrepancyHiddenEffect, NamedRecoveredAndGapClosed) {
     EXPECT_LE(std::abs(e->effect.value - hidden.value), bands.k * e->std);
     expect_chi2_in_band(a.after.summary, bands.tail);
     EXPECT_LT(a.after.summary.chi2, a.before.summary.chi2);
+    // Out of sample too (issue 23): the cross-validated chi2 per point (time-block folds) drops
+    // when the effect is added, at its step and overall.
+    EXPECT_LT(a.after.cv.cv_chi2_per_point, a.before.cv.cv_chi2_per_point);
+    EXPECT_LT(e->cv_after, e->cv_before);
     ++trial;
   }
 }

@@ -18,6 +18,7 @@
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/simulator.h"
 #include "accel_intrinsics/io/atomic_file.h"
+#include "accel_intrinsics/io/text_report.h"
 #include "../support/test_files.h"
 
 namespace accel_intrinsics {
@@ -77,6 +78,33 @@ io::ResultContext full_context() {
   c.complete = false;
   c.warnings = {"the recording ends before the controller's DONE", "true", "1.5", ""};
   return c;
+}
+
+// A fit with a noise model states it: kind, source, rest and the parameters per axis, in JSON and
+// YAML alike (issue 23).
+TEST(ResultDocument, NoiseModelOfTheLongRest) {
+  SimulationOptions sim;
+  sim.seed = 11;
+  sim.protocol.initial_rest_s = 120.0;
+  sim.bias_gm_sigma = 0.0015;
+  sim.bias_gm_tau_s = 30.0;
+  RestSamples rest;
+  const PositionTable table = simulate_position_table(sim, &rest);
+  const std::optional<NoiseModel> m = noise_model_of_run(table, rest.stamps_s, rest.outputs, 120.0);
+  ASSERT_TRUE(m.has_value());
+  CalibrateOptions options;
+  options.fit.noise_model = *m;
+  const CalibrationReport r = calibrate(table, nullptr, options);
+  const nlohmann::json j = nlohmann::json::parse(io::result_json_text(r, {}));
+  ASSERT_TRUE(j["noise_model"].is_object());
+  EXPECT_EQ(j["noise_model"]["kind"], m->kind());
+  EXPECT_EQ(j["noise_model"]["rest"]["samples"], m->rest_samples);
+  EXPECT_DOUBLE_EQ(j["noise_model"]["axes"]["v"]["gm_sigma"].get<double>(), m->axes[1].gm_sigma);
+  const YAML::Node y = YAML::Load(io::result_yaml_text(r, {}));
+  EXPECT_EQ(y["noise_model"]["kind"].as<std::string>(), m->kind());
+  std::ostringstream text;
+  io::write_text_report(text, r, {});
+  EXPECT_NE(text.str().find("noise model:   " + m->kind()), std::string::npos) << text.str();
 }
 
 // The YAML tree equals the JSON tree: the same keys everywhere, the same values (numbers to the
@@ -158,6 +186,15 @@ TEST(ResultDocument, JsonAndYamlHaveTheSameKeysAndValues) {
   ASSERT_EQ(j["fitted_effects"].size(), report().certificate.effects.size());
   EXPECT_EQ(j["fitted_effects"][0]["name"], report().certificate.effects[0].name());
   EXPECT_EQ(j["effects"].size(), report().analysis->effects.size() + 1);  // + timing_lag
+  // The noise the weights assumed and the out-of-sample gap (issue 23): white here.
+  EXPECT_EQ(j["noise_model"], "white");
+  EXPECT_TRUE(j["gap"]["before"]["cv_chi2_per_point"].is_number());
+  EXPECT_TRUE(j["gap"]["after"]["cv_chi2_per_point"].is_number());
+  EXPECT_LT(j["gap"]["after"]["cv_chi2_per_point"].get<double>(),
+            j["gap"]["before"]["cv_chi2_per_point"].get<double>());
+  ASSERT_EQ(j["noise_entries"].size(), 1u);
+  EXPECT_EQ(j["noise_entries"][0]["name"], "correlated_noise");
+  EXPECT_EQ(j["noise_entries"][0]["named"], false);
   EXPECT_EQ(j["samples"]["used"], 12345);
   EXPECT_EQ(j["samples"]["dropped_late"], 2);
   EXPECT_EQ(j["input"]["type"], "bag");

@@ -35,6 +35,7 @@
 #include <array>
 #include <cstdint>
 #include <iosfwd>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -80,6 +81,15 @@ struct AnalysisOptions {
   // the omnibus chi-square test spreads one effect over hundreds of degrees of freedom and is far
   // less powerful than the targeted score tests, so stopping on it would leave effects unnamed.
   bool stop_when_consistent = false;
+  // The noise of the dwell means (DESIGN.md section 12): white by default; with a slow part
+  // (from the run's long rest, noise.h noise_model_of_run) every fit is generalized least squares
+  // and every test runs on the whitened residuals, so a stationary slow bias is not read as an
+  // effect.
+  NoiseModel noise_model;
+  // Out of sample: folds in time blocks for the cross-validated chi-square per point
+  // (cross_validated_gap); an effect is named only when adding it also lowers that (the in-sample
+  // test and the out-of-sample gap agree). 0 folds: no cross-validation (and no such check).
+  int cv_folds = 5;
 };
 
 // Throws std::invalid_argument naming the field.
@@ -139,8 +149,33 @@ struct TimeBinGap {
   double rms = 0.0;
 };
 
+// Cross-validated chi-square per point (DESIGN.md section 12): the dwells ordered in time and cut
+// into `folds` contiguous blocks; each block is predicted by the model fitted to the others, and
+// its residuals judged against the noise model's covariance of that block (white: the dwell
+// standard errors). Sum over blocks / number of residuals. A missing effect raises it; a term
+// that only fits noise does not lower it (a drift extrapolates across blocks, a slow noise does
+// not). NaN when not computed or every fold failed to fit.
+struct CrossValidatedGap {
+  double cv_chi2_per_point = std::numeric_limits<double>::quiet_NaN();
+  int folds = 0;         // folds that were fitted
+  int failed_folds = 0;  // folds whose training set could not be fitted (skipped)
+  int points = 0;        // residuals predicted
+};
+CrossValidatedGap cross_validated_gap(const PositionTable& table, const FitOptions& options,
+                                      int folds);
+
+// The slow part of a noise model estimated from one long rest is rough (a 120 s rest gives a 30 s
+// Gauss-Markov bias to about +-40 %), and an underestimate lets slow noise through as effects.
+// This scales each axis' slow part (Gauss-Markov variance and random-walk rate together) by the
+// factor c_s >= 1 that brings that accelerometer's generalized chi-square of the base fit (S, O
+// and options.effects, the GLS of fit.h) to its degrees of freedom: the amplitude from the whole
+// run's dwells, the shape (tau) from the rest. Never scales down (a rest that saw more than the
+// run keeps its model). White models come back unchanged. The source says the factors.
+NoiseModel scale_slow_part_to_residuals(const PositionTable& table, const FitOptions& options);
+
 struct Gap {
   GapSummary summary;
+  CrossValidatedGap cv;  // filled by analyze() for the `before` and `after` gaps
   std::vector<CellGap> cells;  // 9 cells, phase-major
   std::vector<TimeBinGap> time_bins;
   std::array<double, 3> trend_z{{0, 0, 0}};  // per accelerometer: t-statistic of z vs time
@@ -169,6 +204,10 @@ struct CandidateScore {
   double detection_threshold = 0;  // |value| named with probability detection_power (theory)
   double delta_chi2 = 0;           // from the nonlinear refit, when one was made (else 0)
   bool refit = false;
+  // Out of sample, for refit candidates: the cross-validated chi2 per point of the model at this
+  // step and with the candidate added (NaN when not computed).
+  double cv_before = std::numeric_limits<double>::quiet_NaN();
+  double cv_after = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct ScreeningStep {
@@ -187,6 +226,8 @@ struct NamedEffect {
   double score_chi2 = 0;
   double delta_chi2 = 0;  // chi2 drop of the refit that added it
   int step = 0;
+  double cv_before = std::numeric_limits<double>::quiet_NaN();  // out of sample, at its step
+  double cv_after = std::numeric_limits<double>::quiet_NaN();
   // The candidate whose score direction was closest to this one's at that step, and |corr|.
   std::string closest_alternative;
   double closest_correlation = 0;
@@ -197,6 +238,22 @@ struct Ambiguity {
   std::vector<std::string> candidates;  // labels that explain the data almost equally
   double correlation = 0;               // |corr| of their score directions after the base fit
   std::string separating_experiment;
+};
+
+// The noise-model entry `correlated_noise` of the vocabulary (effects.h noise_entry_catalog):
+// named when the residuals exceed the white prediction (the final model refitted with white
+// weights fails the chi-square test at alpha), the noise model explains them (the GLS gap passes
+// it), and no catalog effect explains them better out of sample (whatever effects the analysis
+// named are in both models). Not a physical effect: never in `effects`.
+struct NoiseEntry {
+  std::string name = "correlated_noise";
+  bool named = false;
+  std::string noise_model;          // kind() of the model used
+  double white_reduced_chi2 = 0.0;  // of the final model, white weights
+  double white_p_value = 1.0;
+  double model_reduced_chi2 = 0.0;  // of the final model with the noise model
+  double model_p_value = 1.0;
+  std::string reason;
 };
 
 struct AnalysisResult {
@@ -212,6 +269,8 @@ struct AnalysisResult {
   std::vector<std::string> unobservable;       // e.g. local gravity: no residual shows it
   std::string stop_reason;
   double local_gravity = kStandardGravity;
+  NoiseModel noise_model;  // what every fit used
+  NoiseEntry correlated_noise;
 };
 
 // The whole workflow. Throws FitError when even the base model cannot be fitted.

@@ -89,6 +89,19 @@ std::vector<int> effect_targets(EffectKind kind);
 // first, then an effect's experiment for any other partner, then the generic advice).
 std::string separating_experiment(const Effect& a, const Effect& b);
 
+// Noise-model entries of the vocabulary (DESIGN.md section 12): names the discrepancy analysis may
+// give a gap that NO physical term explains. They are not effect terms (no Effect, never
+// simulated as a term nor fitted as one; make_effect refuses them with a pointer here).
+//   correlated_noise: the dwell means' noise is not white (a slow bias: Gauss-Markov, random
+//   walk); named when the residuals exceed the white prediction, the run's noise model (from its
+//   long rest) explains them, and no catalog effect explains them better out of sample.
+struct NoiseEntryInfo {
+  const char* name;
+  const char* description;
+};
+const std::vector<NoiseEntryInfo>& noise_entry_catalog();
+constexpr const char* kCorrelatedNoise = "correlated_noise";
+
 // EffectInfo::unmet_precondition_note of `effect`, for its target: "phase x was swept one way...".
 std::string unmet_precondition_note(const Effect& effect);
 

@@ -16,6 +16,7 @@
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/core/effects.h"
 #include "accel_intrinsics/core/intrinsics.h"
+#include "accel_intrinsics/core/noise.h"
 #include "accel_intrinsics/core/position_table.h"
 
 namespace accel_intrinsics {
@@ -35,6 +36,12 @@ struct FitOptions {
   // starting guess; the fitted values come back in FitResult::effects.
   std::vector<Effect> effects;
   int min_positions_per_phase = 3;
+  // The noise of the dwell means (DESIGN.md section 12). White (default): weights 1 / se^2 with
+  // se = std / sqrt(n), as always. With a slow part (estimated from the run's long rest,
+  // noise.h), the joint fit is generalized least squares with the covariance the model implies
+  // between the dwell means (fit.cpp says why); eq4 inflates each dwell's variance by its slow
+  // part instead.
+  NoiseModel noise_model;
 };
 
 // Throws FitError with a message that names the phase, the row or the field.
@@ -75,6 +82,12 @@ struct FitResult {
   // Per row of the table: measured minus model (m/s^2), and the standard error used as weight.
   std::vector<Eigen::Vector3d> residuals;
   std::vector<Eigen::Vector3d> standard_errors;
+
+  // The noise model the fit used (white: kind() == "white"), and for generalized least squares
+  // the Cholesky factors of the dwell means' correlation (null when white or eq4): the analysis
+  // whitens residuals and Jacobians with it. chi2 is then r^T C^-1 r.
+  NoiseModel noise_model;
+  std::shared_ptr<const DwellCorrelation> correlation;
 
   // Ceres' brief report for fits with effect terms (empty for the closed-form fits).
   std::string solver_message;

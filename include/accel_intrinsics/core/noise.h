@@ -12,7 +12,9 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "accel_intrinsics/core/position_table.h"
@@ -92,6 +94,96 @@ struct StaticRecordNoise {
 // increasing (the index of the first one that is not), non-finite outputs.
 StaticRecordNoise analyze_static_record(const std::vector<double>& stamps_s,
                                         const std::vector<Eigen::Vector3d>& outputs);
+
+// ---- Noise that is not white (DESIGN.md section 12) -----------------------------------------
+//
+// The noise of one output as a sum of independent parts: a white noise of per-sample standard
+// deviation white_std, a first-order Gauss-Markov bias (stationary, variance gm_sigma^2,
+// correlation exp(-|dt| / gm_tau_s)), and a random-walk bias (variance growing as
+// rw_density^2 t from the start of the run, rw_density in (m/s^2)/sqrt(s)). The slow parts
+// make a dwell mean scatter more than std / sqrt(n) and make neighbouring dwell means err
+// together; slow_covariance() gives their covariance exactly (closed forms of the double
+// integral over the two dwells).
+struct AxisNoiseModel {
+  double white_std = 0.0;  // per-sample standard deviation, m/s^2
+  double gm_sigma = 0.0;   // m/s^2
+  double gm_tau_s = 0.0;   // s
+  double rw_density = 0.0;  // (m/s^2)/sqrt(s)
+  bool slow() const { return gm_sigma > 0.0 || rw_density > 0.0; }
+};
+
+struct NoiseModel {
+  AxisNoiseModel axes[3];
+  double rate_hz = 0.0;
+  // Where it came from (the long rest): its time span and sample count; empty source = assumed
+  // (white, or given by the caller).
+  std::string source;
+  double rest_t_start_s = 0.0;
+  double rest_t_end_s = 0.0;
+  std::size_t rest_samples = 0;
+
+  // True when no axis has a slow part: every fit then weights by std / sqrt(n) exactly as
+  // before.
+  bool white() const;
+  // "white", "gauss_markov", "random_walk" or "gauss_markov+random_walk".
+  std::string kind() const;
+  // Covariance of the means of axis `axis` over [a0, a1] and [b0, b1] from the slow parts
+  // (the random walk counted from t_origin). Intervals of zero length are points.
+  double slow_covariance(int axis, double a0, double a1, double b0, double b1,
+                         double t_origin) const;
+  // Variance of the mean of n samples over duration_s seconds (the random walk from the
+  // dwell's start): white_std^2 / n + the slow part.
+  double variance_of_mean(int axis, double duration_s, double n) const;
+  // Allan variance the model predicts at cluster time tau_s.
+  double allan_variance(int axis, double tau_s) const;
+};
+
+// A white model (kind "white") with the given per-sample stds.
+NoiseModel white_noise_model(const Eigen::Vector3d& white_std, double rate_hz);
+
+// The noise model of a static record (samples at rate_hz, at least 64 and 10 s): per axis,
+// AVAR(tau) = white_std^2 / (rate tau) + AVAR_GM(tau; sigma, tau_c) + rw^2 tau / 3 fitted to its
+// overlapping Allan variance by weighted least squares (weights from the Allan points' relative
+// uncertainty; non-negative coefficients; tau_c on a logarithmic grid from 0.5 s to 5 times the
+// record, the best one kept). A slow part that the fit does not resolve is set to zero.
+// Throws std::invalid_argument for a record too short or a rate that is not positive.
+NoiseModel estimate_noise_model(const std::vector<Eigen::Vector3d>& samples, double rate_hz);
+
+// The long rest of a run (DESIGN.md section 12), as a time span: on a gimbal run the first dwell
+// (phase x, step 0) when it lasts at least `initial_rest_s` (> 0); in any recorded run a dwell at
+// least 10 times the median dwell length (the first such); nothing otherwise.
+struct LongRest {
+  std::size_t row = 0;  // index in the table
+  double t_start_s = 0.0;
+  double t_end_s = 0.0;
+  std::string reason;
+};
+std::optional<LongRest> find_long_rest(const PositionTable& table, double initial_rest_s = 0.0);
+
+// The noise model of a run: its long rest found in the table, the raw samples (stamps, outputs)
+// that fall inside it estimated with estimate_noise_model; nothing when the run has no long rest
+// or fewer than 64 samples inside it.
+std::optional<NoiseModel> noise_model_of_run(const PositionTable& table,
+                                             const std::vector<double>& stamps_s,
+                                             const std::vector<Eigen::Vector3d>& outputs,
+                                             double initial_rest_s = 0.0);
+
+// The dwell means' covariance a noise model implies, per accelerometer s: C_s = D_s R_s D_s with
+// D_s = diag(se_s) (the white standard errors the fit uses) and R_s = I + D_s^-1 K_s D_s^-1 (K_s:
+// slow_covariance between the rows). Stores the lower Cholesky factor of each R_s; whiten()
+// applies L_s^-1 to a vector of normalized values (residual / se), interleaved as 3 row + s, so
+// that white and correlated noise alike give independent unit-variance entries.
+struct DwellCorrelation {
+  Eigen::MatrixXd L[3];
+  std::size_t rows = 0;
+  void whiten(Eigen::VectorXd& interleaved) const;
+  // The same for a matrix whose rows are interleaved (each column whitened).
+  void whiten_columns(Eigen::MatrixXd& interleaved) const;
+};
+// Nothing (white) when the model has no slow part.
+std::shared_ptr<const DwellCorrelation> dwell_correlation(const PositionTable& table,
+                                                          const std::vector<Eigen::Vector3d>& se,
+                                                          const NoiseModel& model);
 
 // The flat floor of a bias instability B: sqrt(2 ln 2 / pi) B.
 constexpr double kBiasInstabilityFloor = 0.66428;

@@ -70,6 +70,10 @@ struct ProtocolOptions {
   // the top of the up-sweep, before the turn: 0..N-1, N, then N-1..0 from above; appending it
   // after the return sweep (which ends at 0) would need a full extra turn up and back.
   bool closing_position = false;
+  // A long rest at the first position (phase x, step 0) before the sweep: that dwell lasts
+  // max(dwell_s, initial_rest_s). From it the noise model is estimated (white density and the
+  // slow part, DESIGN.md section 12; noise.h find_long_rest). 0 (default): no long rest.
+  double initial_rest_s = 0.0;
 };
 
 // Throws std::invalid_argument naming the offending field.

@@ -9,6 +9,7 @@
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/model.h"
+#include "accel_intrinsics/core/noise.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/protocol.h"
 
@@ -50,6 +51,26 @@ struct SimulationOptions {
   double local_gravity = kStandardGravity;
   std::uint64_t seed = 1;
   TemperatureProfile temperature;  // constant 25 C and not recorded by default
+  // Slow bias (DESIGN.md section 12), independent per accelerometer, added to every sample: a
+  // first-order Gauss-Markov process (stationary, standard deviation bias_gm_sigma in m/s^2,
+  // correlation exp(-|dt| / bias_gm_tau_s), the usual model of bias instability) and a random
+  // walk from 0 at the first gimbal command (standard deviation bias_random_walk sqrt(t), in
+  // (m/s^2)/sqrt(s)). Drawn from their own random stream: the white noise of a seed is the same
+  // with or without them. 0 (default): none.
+  double bias_gm_sigma = 0.0;
+  double bias_gm_tau_s = 0.0;
+  double bias_random_walk = 0.0;
+};
+
+// The noise model the options imply (white_std = sample_noise_stds, and the slow bias): what an
+// estimate from a long rest should find.
+NoiseModel true_noise_model(const SimulationOptions& options);
+
+// Raw samples of the first dwell, for the noise model (simulate_position_table fills it when
+// asked): stamps in seconds since the first gimbal command and the outputs.
+struct RestSamples {
+  std::vector<double> stamps_s;
+  std::vector<Eigen::Vector3d> outputs;
 };
 
 // T_ref of the simulated run: the mean over the schedule's dwells of the true dwell-mean
@@ -69,7 +90,11 @@ void validate(const SimulationOptions& options);
 // Dwell means drawn directly from their exact distributions (mean: normal with sigma/sqrt(n);
 // sample std: sigma * sqrt(chi2(n-1)/(n-1))), model evaluated at mid-dwell. Fast: use for Monte
 // Carlo. Quantization and timing lag are ignored here (use simulate_recording).
-PositionTable simulate_position_table(const SimulationOptions& options);
+// With `first_dwell`, the first dwell's samples are drawn one by one and returned there (its mean
+// and std are theirs), so a test can estimate the noise model from the long rest as a recorded
+// run would.
+PositionTable simulate_position_table(const SimulationOptions& options,
+                                      RestSamples* first_dwell = nullptr);
 
 // Raw streams: gimbal events and IMU samples as the nodes would publish them, including the
 // samples taken while moving (angle interpolated along the move) and timing lag (stamps late).

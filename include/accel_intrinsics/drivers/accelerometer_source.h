@@ -60,6 +60,12 @@ struct SimulatedAccelerometerOptions {
   // hold at that temperature (a fit reports them at the run's mean temperature instead).
   core::TemperatureProfile temperature;
   double temperature_reference_c = 25.0;
+  // Slow bias per accelerometer (core::SimulationOptions, DESIGN.md section 12): Gauss-Markov
+  // (bias_gm_sigma m/s^2, correlation time bias_gm_tau_s s) and a random walk (bias_random_walk,
+  // (m/s^2)/sqrt(s)); 0 = none. Device YAML keys bias/gm_sigma, bias/gm_tau_s, bias/random_walk.
+  double bias_gm_sigma = 0.0;
+  double bias_gm_tau_s = 0.0;
+  double bias_random_walk = 0.0;
 
   // Throws std::invalid_argument naming the field.
   void validate() const;
@@ -115,6 +121,12 @@ class SimulatedAccelerometer : public AccelerometerSource {
   std::mt19937_64 rng_;
   std::normal_distribution<double> normal_{0.0, 1.0};
   std::mt19937_64 temperature_rng_;  // readings: their own stream (the samples' stay the same)
+  // The slow bias: its own stream, its state and the true time it was last advanced to.
+  std::mt19937_64 bias_rng_;
+  Eigen::Vector3d bias_gm_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d bias_rw_ = Eigen::Vector3d::Zero();
+  double bias_t_s_ = std::numeric_limits<double>::quiet_NaN();
+  Eigen::Vector3d slow_bias(double t_s);
 };
 
 }  // namespace accel_intrinsics

@@ -9,12 +9,16 @@
 //   of the certificate fit, beyond the contract: model_label (e.g.
 //     "joint+quadratic_nonlinearity[u]"), vectors_std, offset_std, offset_per_phase_std,
 //     cross_sensitivity_std, chi2, dof, fitted_effects [{name, target, value, std}] (the terms
-//     fitted in the certificate model)
+//     fitted in the certificate model), noise_model ("white", or {kind, source, rate_hz, rest
+//     {t_start, t_end, samples}, axes {u,v,w: {white_std, gm_sigma, gm_tau_s, rw_density}}}: the
+//     noise of the dwell means the fit used, DESIGN.md section 12)
 //   from the dwells (core/noise.h), when they tell: noise_density {u,v,w} ((m/s^2)/sqrt(Hz), the
 //     continuous-time density sample_std / sqrt(rate)), noise_density_std, sample_rate_hz
 //   always: certificate_model (model_label of the certificate), certificate_policy (base|refit)
 //   with an analysis: effects [{name, target, value, std, p_value, ...}] (the effects the analysis
-//     named, timing_lag appended when detected), ambiguous, gap {before, after}, screening, ...
+//     named, timing_lag appended when detected), ambiguous, gap {before, after} (each with
+//     cv_chi2_per_point, cv_folds: out of sample), noise_entries [{name: correlated_noise,
+//     named, ...}], screening, ...
 //     (analysis_report.h; never replacing a key above), timing_lag when estimated;
 //     analysis_error when the analysis failed
 //   with a budget (offline_fit --budget, the node's budget_file): uncertainty_budget {sources,

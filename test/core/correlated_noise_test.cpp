@@ -1,0 +1,457 @@
+// Noise that is not white (issue 23, DESIGN.md section 12): the noise model of a long rest, the
+// generalized least-squares fit it drives, the discrepancy analysis under a slow bias, and the
+// cross-validated (out-of-sample) gap. Monte Carlo counts are kept small so the core suite stays
+// quick; bench/ holds nothing of this (the counts here are what was run).
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <optional>
+#include <stdexcept>
+#include <iostream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/core/discrepancy.h"
+#include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/noise.h"
+#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/simulator.h"
+#include "../support/statistical_bounds.h"
+
+namespace accel_intrinsics {
+namespace core {
+namespace {
+
+// ---- the covariance formulas against brute-force sums ------------------------------------------
+
+double brute_covariance(const std::function<double(double, double)>& k, double a0, double a1,
+                        double b0, double b1) {
+  const int m = 400;
+  double sum = 0.0;
+  for (int i = 0; i < m; ++i) {
+    const double t = a0 + (a1 - a0) * (i + 0.5) / m;
+    for (int j = 0; j < m; ++j) sum += k(t, b0 + (b1 - b0) * (j + 0.5) / m);
+  }
+  return sum / (static_cast<double>(m) * m);
+}
+
+TEST(NoiseModel, SlowCovarianceMatchesTheDoubleIntegral) {
+  NoiseModel m;
+  m.axes[0].gm_sigma = 0.002;
+  m.axes[0].gm_tau_s = 7.0;
+  m.axes[1].rw_density = 3e-4;
+  const double origin = 1.0;
+  auto gm = [&](double t, double s) { return 0.002 * 0.002 * std::exp(-std::abs(t - s) / 7.0); };
+  auto rw = [&](double t, double s) { return 9e-8 * (std::min(t, s) - origin); };
+  const double cases[][4] = {{2, 4, 2, 4}, {2, 4, 10, 13}, {10, 13, 2, 4}, {2, 12, 5, 8},
+                             {1, 61, 1, 61}, {3, 3.5, 40, 41}};
+  for (const auto& c : cases) {
+    SCOPED_TRACE(std::to_string(c[0]) + ".." + std::to_string(c[1]) + " x " +
+                 std::to_string(c[2]) + ".." + std::to_string(c[3]));
+    const double g = m.slow_covariance(0, c[0], c[1], c[2], c[3], origin);
+    EXPECT_NEAR(g, brute_covariance(gm, c[0], c[1], c[2], c[3]), 1e-3 * std::abs(g) + 1e-14);
+    const double r = m.slow_covariance(1, c[0], c[1], c[2], c[3], origin);
+    EXPECT_NEAR(r, brute_covariance(rw, c[0], c[1], c[2], c[3]), 1e-3 * std::abs(r) + 1e-14);
+  }
+  // The variance of a dwell mean: white / n plus the slow part; long dwells approach sigma^2 2
+  // tau / T (Gauss-Markov), short ones sigma^2.
+  m.axes[0].white_std = 0.01;
+  EXPECT_NEAR(m.variance_of_mean(0, 2.0, 200.0),
+              1e-4 / 200.0 + m.slow_covariance(0, 0, 2, 0, 2, 0), 1e-18);
+  EXPECT_NEAR(m.slow_covariance(0, 0, 1e-4, 0, 1e-4, 0), 4e-6, 1e-9);
+  EXPECT_NEAR(m.slow_covariance(0, 0, 7000, 0, 7000, 0) / (4e-6 * 2 * 7.0 / 7000), 1.0, 2e-3);
+}
+
+// ---- the noise model of a record written here from the equations (not by the simulator) -------
+
+// White noise plus an AR(1) bias b_k = phi b_{k-1} + sqrt(1 - phi^2) sigma xi_k (the exact
+// discretization of a Gauss-Markov process), plus a random walk.
+std::vector<Eigen::Vector3d> ar1_record(std::uint64_t seed, std::size_t n, double rate,
+                                        double white, double sigma, double tau, double rw) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const double phi = std::exp(-1.0 / (rate * tau));
+  Eigen::Vector3d b(sigma * normal(rng), sigma * normal(rng), sigma * normal(rng));
+  Eigen::Vector3d walk = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector3d> out(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    for (int s = 0; s < 3; ++s) {
+      b(s) = phi * b(s) + std::sqrt(1.0 - phi * phi) * sigma * normal(rng);
+      walk(s) += rw / std::sqrt(rate) * normal(rng);
+      out[k](s) = 9.0 * (s == 2) + b(s) + walk(s) + white * normal(rng);
+    }
+  }
+  return out;
+}
+
+TEST(NoiseModel, EstimatedFromAnAr1RecordWrittenInTheTest) {
+  // A long record (40 tau) pins the model down: sigma within 35 % (one record of 40 tau: the
+  // variance of a Gauss-Markov process is known to about sqrt(2 tau / T) = 22 %, and the fit
+  // shares the low Allan points with the random-walk term; axis u of this seed comes out 28 %
+  // low), tau within a factor 2, white within 3 %, the variance of a 2 s dwell mean within a
+  // factor 2. The same estimator on a 120 s rest is much rougher (see the Monte Carlo below).
+  const double rate = 50.0, white = 0.004, sigma = 0.0015, tau = 30.0;
+  const std::vector<Eigen::Vector3d> x = ar1_record(7, 60000, rate, white, sigma, tau, 0.0);
+  const NoiseModel m = estimate_noise_model(x, rate);
+  EXPECT_EQ(m.kind().find("gauss_markov"), 0u) << m.kind();
+  for (int s = 0; s < 3; ++s) {
+    SCOPED_TRACE(s);
+    EXPECT_NEAR(m.axes[s].white_std / white, 1.0, 0.03);
+    EXPECT_NEAR(m.axes[s].gm_sigma / sigma, 1.0, 0.35);
+    EXPECT_GT(m.axes[s].gm_tau_s, tau / 2.0);
+    EXPECT_LT(m.axes[s].gm_tau_s, tau * 2.0);
+    // The dwell-mean variance the estimate predicts for a 2 s dwell, against the truth.
+    NoiseModel truth;
+    truth.axes[s] = {white, sigma, tau, 0.0};
+    const double ratio = m.variance_of_mean(s, 2.0, 100.0) / truth.variance_of_mean(s, 2.0, 100.0);
+    EXPECT_GT(ratio, 0.5);
+    EXPECT_LT(ratio, 2.0);
+  }
+  // White data: the slow part stays negligible against the white part of a 2 s dwell mean.
+  const std::vector<Eigen::Vector3d> w = ar1_record(8, 12000, 100.0, white, 0.0, 1.0, 0.0);
+  const NoiseModel mw = estimate_noise_model(w, 100.0);
+  for (int s = 0; s < 3; ++s) {
+    const double white_var = white * white / 200.0;
+    EXPECT_LT(mw.variance_of_mean(s, 2.0, 200.0), 1.5 * white_var) << s;
+  }
+  EXPECT_THROW(estimate_noise_model(std::vector<Eigen::Vector3d>(50), 100.0),
+               std::invalid_argument);
+}
+
+// ---- the long rest ---------------------------------------------------------------------------
+
+TEST(NoiseModel, FindLongRest) {
+  SimulationOptions so;
+  so.protocol.steps_per_phase = 6;
+  so.noise_density = 1e-3;
+  PositionTable t = simulate_position_table(so);
+  EXPECT_FALSE(find_long_rest(t).has_value());
+  EXPECT_FALSE(find_long_rest(t, 120.0).has_value());
+  so.protocol.initial_rest_s = 120.0;
+  t = simulate_position_table(so);
+  const std::vector<ScheduledPosition> schedule = build_schedule(so.protocol);
+  EXPECT_NEAR(schedule.front().dwell_end_s - schedule.front().settled_s, 120.0, 1e-9);
+  EXPECT_NEAR(schedule[1].dwell_end_s - schedule[1].settled_s, so.protocol.dwell_s, 1e-9);
+  std::optional<LongRest> r = find_long_rest(t, 120.0);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->row, 0u);
+  EXPECT_NE(r->reason.find("initial rest"), std::string::npos);
+  // Without the protocol's figure: 10 x the median dwell serves (an old recording).
+  r = find_long_rest(t);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_NE(r->reason.find("median"), std::string::npos);
+  // 15 s is not 10 x 2 s... but 25 s is.
+  t.rows[0].t_end_s = t.rows[0].t_start_s + 15.0;
+  EXPECT_FALSE(find_long_rest(t).has_value());
+  t.rows[3].t_end_s = t.rows[3].t_start_s + 25.0;
+  r = find_long_rest(t);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->row, 3u);
+  // A tumble: the first rest of at least 30 s.
+  for (DwellRecord& row : t.rows) row.orientation_unknown = true;
+  EXPECT_FALSE(find_long_rest(t).has_value());
+  t.rows[5].t_end_s = t.rows[5].t_start_s + 31.0;
+  r = find_long_rest(t);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->row, 5u);
+}
+
+// ---- the issue's scenario ----------------------------------------------------------------------
+
+// N = 24, 2 s dwells, a 120 s first dwell, a Gauss-Markov bias of 0.0015 m/s^2 and 30 s.
+SimulationOptions issue_scenario(std::uint64_t seed) {
+  SimulationOptions so;
+  so.protocol.steps_per_phase = 24;
+  so.protocol.dwell_s = 2.0;
+  so.protocol.initial_rest_s = 120.0;
+  so.noise_density = 300e-6 * kStandardGravity;
+  so.bias_gm_sigma = 0.0015;
+  so.bias_gm_tau_s = 30.0;
+  so.seed = seed;
+  return so;
+}
+
+// The noise model as a recorded run gives it: estimated from the first dwell's raw samples.
+NoiseModel estimated_model(const PositionTable& table, const RestSamples& rest,
+                           double initial_rest_s) {
+  const std::optional<NoiseModel> m =
+      noise_model_of_run(table, rest.stamps_s, rest.outputs, initial_rest_s);
+  if (!m) throw std::runtime_error("no noise model");
+  return *m;
+}
+
+struct Coverage {
+  double sum_sq = 0.0;
+  int count = 0;
+  double rms() const { return std::sqrt(sum_sq / count); }
+  void add(double z) {
+    sum_sq += z * z;
+    ++count;
+  }
+};
+
+// z-scores of |u|, |v|, |w|, the three angles and the offsets against the truth.
+void add_z(const FitResult& f, const SimulationOptions& so, Coverage* c, bool offsets) {
+  const Intrinsics truth = intrinsics_from_vectors(so.truth.S);
+  for (int s = 0; s < 3; ++s) {
+    c->add((f.intrinsics.responsivity(s) - truth.responsivity(s)) /
+           f.intrinsics.responsivity_std(s));
+    c->add((f.intrinsics.angles_rad(s) - truth.angles_rad(s)) / f.intrinsics.angles_std_rad(s));
+    if (offsets) c->add((f.O(s) - so.truth.O(s)) / f.O_std(s));
+  }
+}
+
+TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesGaussMarkov) {
+  // 60 runs of the issue's scenario. With the white weights the z-scores spread far beyond 1
+  // (the issue saw 5 sigma); with the noise model (true, and as estimated from the 120 s rest)
+  // the RMS z-score is 1 within the chi-square band of 60 runs (per parameter; pooled over the
+  // 9 parameters the bands below are conservative). The band for the estimated model is wider
+  // (0.75 .. 1.35): a 120 s rest gives the slow part to about +-40 %.
+  const int runs = 60;
+  Coverage white, true_model, estimated;
+  for (int k = 0; k < runs; ++k) {
+    const SimulationOptions so = issue_scenario(500 + static_cast<std::uint64_t>(k));
+    RestSamples rest;
+    const PositionTable table = simulate_position_table(so, &rest);
+    FitOptions fo;
+    add_z(fit(table, fo), so, &white, true);
+    fo.noise_model = true_noise_model(so);
+    const FitResult ft = fit(table, fo);
+    EXPECT_EQ(ft.noise_model.kind(), "gauss_markov");
+    ASSERT_TRUE(ft.correlation != nullptr);
+    add_z(ft, so, &true_model, true);
+    fo.noise_model = estimated_model(table, rest, so.protocol.initial_rest_s);
+    add_z(fit(table, fo), so, &estimated, true);
+  }
+  std::cout << "[ INFO     ] Gauss-Markov coverage, RMS z over " << runs
+            << " runs x 9 parameters: white " << white.rms() << ", true model "
+            << true_model.rms() << ", estimated model " << estimated.rms() << "\n";
+  const std::pair<double, double> band = statistical_bounds::chi2_band(runs, 1e-3);
+  const double lo = std::sqrt(band.first / runs), hi = std::sqrt(band.second / runs);
+  EXPECT_GT(white.rms(), 1.5);  // the problem: white weights are overconfident
+  EXPECT_GT(true_model.rms(), lo);
+  EXPECT_LT(true_model.rms(), hi);
+  EXPECT_GT(estimated.rms(), 0.75);
+  EXPECT_LT(estimated.rms(), 1.35);
+}
+
+TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesRandomWalk) {
+  // A random-walk bias (1e-4 (m/s^2)/sqrt(s): 2 mm/s^2 after 400 s). Responsivities and angles
+  // (the offsets carry the walk's value at the first dwell, which no model of the run can see).
+  const int runs = 60;
+  Coverage white, true_model;
+  for (int k = 0; k < runs; ++k) {
+    SimulationOptions so = issue_scenario(900 + static_cast<std::uint64_t>(k));
+    so.bias_gm_sigma = 0.0;
+    so.bias_random_walk = 1e-4;
+    const PositionTable table = simulate_position_table(so);
+    FitOptions fo;
+    add_z(fit(table, fo), so, &white, false);
+    fo.noise_model = true_noise_model(so);
+    EXPECT_EQ(fo.noise_model.kind(), "random_walk");
+    add_z(fit(table, fo), so, &true_model, false);
+  }
+  std::cout << "[ INFO     ] random-walk coverage, RMS z over " << runs
+            << " runs x 6 parameters: white " << white.rms() << ", true model "
+            << true_model.rms() << "\n";
+  const std::pair<double, double> band = statistical_bounds::chi2_band(runs, 1e-3);
+  const double lo = std::sqrt(band.first / runs), hi = std::sqrt(band.second / runs);
+  EXPECT_GT(white.rms(), 1.3);
+  EXPECT_GT(true_model.rms(), lo);
+  EXPECT_LT(true_model.rms(), hi);
+}
+
+// ---- the analysis under a slow bias ------------------------------------------------------------
+
+AnalysisOptions quick_analysis(const NoiseModel& model) {
+  AnalysisOptions ao;
+  ao.noise_model = model;
+  ao.monte_carlo_draws = 2000;
+  return ao;
+}
+
+TEST(CorrelatedNoise, IssueScenarioNamesNoPhysicalEffect) {
+  // The issue's run: white weights name false effects; with the noise model estimated from the
+  // 120 s rest nothing physical is named, and correlated_noise is.
+  const SimulationOptions so = issue_scenario(23);
+  RestSamples rest;
+  const PositionTable table = simulate_position_table(so, &rest);
+  const NoiseModel m = estimated_model(table, rest, 120.0);
+  const AnalysisResult a = analyze(table, quick_analysis(m));
+  EXPECT_TRUE(a.effects.empty()) << a.effects.front().effect.label();
+  EXPECT_EQ(a.noise_model.kind().find("gauss_markov"), 0u) << a.noise_model.kind();
+  EXPECT_TRUE(a.correlated_noise.named) << a.correlated_noise.reason;
+  EXPECT_LT(a.correlated_noise.white_p_value, 0.025);  // white weights: the gap is "significant"
+  EXPECT_TRUE(std::isfinite(a.before.cv.cv_chi2_per_point));
+  EXPECT_EQ(a.before.cv.folds, 5);
+}
+
+TEST(CorrelatedNoise, FalseAlarmRateOnEffectFreeCorrelatedNoise) {
+  // Effect-free runs of the issue's scenario (seeds 1000..1079), analysed with the noise model
+  // (a) true and (b) estimated from the 120 s rest. (a) must name something in at most the
+  // binomial 1 - 1e-3 quantile at alpha (plus the Monte Carlo allowance of the max-T); (b) is
+  // reported and bounded at 3 alpha: the estimate of the slow part from one 120 s rest is rough,
+  // and an underestimate lets slow noise through (the analysis scales it up to the run's
+  // residuals, scale_slow_part_to_residuals). Measured when written: (a) 1 of 80, (b) 9 of 80
+  // (11 %; 20 of 80 before the scaling), white weights 10 of 10.
+  const int runs = 80;
+  const AnalysisOptions defaults = quick_analysis(NoiseModel());
+  const double p = defaults.alpha + 4.0 * std::sqrt(defaults.alpha * (1.0 - defaults.alpha) /
+                                                    defaults.monte_carlo_draws);
+  int named_true = 0, named_estimated = 0, named_white = 0;
+  for (int k = 0; k < runs; ++k) {
+    const SimulationOptions so = issue_scenario(1000 + static_cast<std::uint64_t>(k));
+    RestSamples rest;
+    const PositionTable table = simulate_position_table(so, &rest);
+    if (!analyze(table, quick_analysis(true_noise_model(so))).effects.empty()) ++named_true;
+    const NoiseModel m = estimated_model(table, rest, 120.0);
+    if (!analyze(table, quick_analysis(m)).effects.empty()) ++named_estimated;
+    if (k < 10 && !analyze(table, quick_analysis(NoiseModel())).effects.empty()) ++named_white;
+  }
+  std::cout << "[ INFO     ] effect-free Gauss-Markov runs naming an effect: true model "
+            << named_true << "/" << runs << ", estimated model " << named_estimated << "/"
+            << runs << ", white weights " << named_white << "/10\n";
+  EXPECT_LE(named_true, statistical_bounds::binomial_upper(runs, p, 1e-3));
+  EXPECT_LE(named_estimated, statistical_bounds::binomial_upper(runs, 3.0 * p, 1e-3));
+  EXPECT_GE(named_white, 5);  // the problem the noise model solves
+}
+
+// The detection threshold of `kind` on `target` under the noise model: from the first screening
+// step of an effect-free run (the candidate's linearized std under GLS, and the max-T critical
+// value).
+double gls_threshold(const PositionTable& table, const NoiseModel& m, EffectKind kind,
+                     int target) {
+  const AnalysisResult a = analyze(table, quick_analysis(m));
+  for (const CandidateScore& c : a.steps.front().candidates)
+    if (c.effect.kind == kind && c.effect.target == target) return c.detection_threshold;
+  return 0.0;
+}
+
+TEST(CorrelatedNoise, HiddenEffectsAreNamedUnderCorrelatedNoise) {
+  // A quadratic non-linearity on v and a real linear offset drift on w, each at 4 times its
+  // detection threshold under the estimated noise model, hidden under the issue's slow bias: the
+  // analysis names each first, and the out-of-sample gap drops when it is added.
+  struct Case {
+    EffectKind kind;
+    int target;
+  };
+  // A second (false) effect beside the hidden one: the estimated model's false-alarm rate is about
+  // 11 % (FalseAlarmRateOnEffectFreeCorrelatedNoise), so at most 2 of the 6 runs may have one.
+  int runs_with_extra = 0;
+  for (const Case c : {Case{EffectKind::QuadraticNonlinearity, 1}, Case{EffectKind::OffsetDrift, 2}}) {
+    for (std::uint64_t seed : {31u, 32u, 33u}) {
+      SimulationOptions so = issue_scenario(seed);
+      RestSamples rest;
+      const PositionTable plain = simulate_position_table(so, &rest);
+      const NoiseModel m = estimated_model(plain, rest, 120.0);
+      const double threshold = gls_threshold(plain, m, c.kind, c.target);
+      ASSERT_GT(threshold, 0.0);
+      const Effect hidden{c.kind, c.target, 4.0 * threshold};
+      so.truth.effects = {hidden};
+      const PositionTable table = simulate_position_table(so, &rest);
+      const AnalysisResult a = analyze(table, quick_analysis(estimated_model(table, rest, 120.0)));
+      SCOPED_TRACE(hidden.label() + " seed " + std::to_string(seed));
+      ASSERT_FALSE(a.effects.empty()) << a.stop_reason;
+      EXPECT_EQ(a.effects.front().effect.label(), hidden.label());
+      if (a.effects.size() > 1) ++runs_with_extra;
+      EXPECT_LT(a.after.cv.cv_chi2_per_point, a.before.cv.cv_chi2_per_point);
+      EXPECT_LT(a.effects.front().cv_after, a.effects.front().cv_before);
+      EXPECT_LT(std::abs(a.effects.front().effect.value - hidden.value),
+                4.0 * a.effects.front().std);
+    }
+  }
+  EXPECT_LE(runs_with_extra, 2);
+}
+
+TEST(CorrelatedNoise, Ar1TableWrittenInTheTestNamesNothingAndCovers) {
+  // Dwell means written here from the equations R = S g f + O + bias + white (the AR(1) bias of
+  // ar1_record, sampled at 50 Hz over the protocol's timeline), not by the simulator. Ten runs:
+  // the analysis with the model estimated from the 120 s rest names at most one (binomial at 3
+  // alpha, 1 - 1e-3), and the z-scores of the fitted S against the truth have RMS below 1.5.
+  ProtocolOptions protocol;
+  protocol.steps_per_phase = 24;
+  protocol.initial_rest_s = 120.0;
+  const std::vector<ScheduledPosition> schedule = build_schedule(protocol);
+  const double rate = 50.0, g = kStandardGravity;
+  Eigen::Matrix3d S;
+  S << 1.01, 0.004, -0.003, 0.002, 0.99, 0.005, -0.001, 0.003, 1.02;
+  const Eigen::Vector3d O(0.05, -0.03, 0.08);
+  const std::size_t n = static_cast<std::size_t>(schedule.back().dwell_end_s * rate) + 2;
+  int named = 0;
+  Coverage cov;
+  const int runs = 10;
+  for (int k = 0; k < runs; ++k) {
+    const std::vector<Eigen::Vector3d> noise =
+        ar1_record(4000 + static_cast<std::uint64_t>(k), n, rate, 0.03, 0.0015, 30.0, 0.0);
+    PositionTable table;
+    table.time_origin_s = 0.0;
+    std::vector<double> stamps;
+    std::vector<Eigen::Vector3d> outputs;
+    for (const ScheduledPosition& p : schedule) {
+      DwellRecord row;
+      row.phase = p.phase;
+      row.step = p.step;
+      row.angle_rad = p.angle_rad;
+      row.t_start_s = p.settled_s;
+      row.t_end_s = p.dwell_end_s;
+      const Eigen::Vector3d f(p.phase == Phase::X ? 0.0 : std::sin(p.angle_rad),
+                              p.phase == Phase::Y   ? 0.0
+                              : p.phase == Phase::X ? std::sin(p.angle_rad)
+                                                    : std::cos(p.angle_rad),
+                              p.phase == Phase::Z ? 0.0 : std::cos(p.angle_rad));
+      const Eigen::Vector3d truth = g * S * f + O;
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero(), sum_sq = Eigen::Vector3d::Zero();
+      std::vector<Eigen::Vector3d> xs;
+      for (auto i = static_cast<std::size_t>(std::ceil(p.settled_s * rate));
+           i < static_cast<std::size_t>(std::ceil(p.dwell_end_s * rate)); ++i) {
+        // ar1_record puts 9 m/s^2 on w: take it off.
+        const Eigen::Vector3d x = truth + noise[i] - Eigen::Vector3d(0, 0, 9.0);
+        xs.push_back(x);
+        sum += x;
+        if (table.rows.empty()) {
+          stamps.push_back(static_cast<double>(i) / rate);
+          outputs.push_back(x);
+        }
+      }
+      row.n = xs.size();
+      row.mean = sum / static_cast<double>(row.n);
+      for (const Eigen::Vector3d& x : xs) sum_sq += (x - row.mean).cwiseAbs2();
+      row.std = (sum_sq / static_cast<double>(row.n - 1)).cwiseSqrt();
+      table.rows.push_back(row);
+    }
+    const std::optional<NoiseModel> m = noise_model_of_run(table, stamps, outputs, 120.0);
+    ASSERT_TRUE(m.has_value());
+    const AnalysisResult a = analyze(table, quick_analysis(*m));
+    if (!a.effects.empty()) ++named;
+    const FitResult& f = a.before_fit;
+    for (int j = 0; j < 9; ++j)
+      cov.add((f.S(j / 3, j % 3) - S(j / 3, j % 3)) / std::sqrt(f.covariance(j, j)));
+  }
+  std::cout << "[ INFO     ] AR(1) tables written in the test: " << named << "/" << runs
+            << " name an effect; RMS z of S " << cov.rms() << "\n";
+  EXPECT_LE(named, statistical_bounds::binomial_upper(runs, 3.0 * 0.03, 1e-3));
+  EXPECT_LT(cov.rms(), 1.5);
+  EXPECT_GT(cov.rms(), 0.6);
+}
+
+TEST(CorrelatedNoise, VocabularyEntry) {
+  ASSERT_EQ(noise_entry_catalog().size(), 1u);
+  EXPECT_STREQ(noise_entry_catalog().front().name, "correlated_noise");
+  EXPECT_THROW(make_effect("correlated_noise", "u"), std::invalid_argument);
+  // White data: not named, and the reason says why.
+  SimulationOptions so = issue_scenario(3);
+  so.bias_gm_sigma = 0.0;
+  const PositionTable table = simulate_position_table(so);
+  const AnalysisResult a = analyze(table, quick_analysis(NoiseModel()));
+  EXPECT_FALSE(a.correlated_noise.named);
+  EXPECT_EQ(a.correlated_noise.noise_model, "white");
+  EXPECT_FALSE(a.correlated_noise.reason.empty());
+}
+
+}  // namespace
+}  // namespace core
+}  // namespace accel_intrinsics
