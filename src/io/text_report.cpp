@@ -91,7 +91,11 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
   out << "  noise model:   " << r.noise_model.kind();
   if (!r.noise_model.white()) {
     out << std::setprecision(3) << " (" << r.noise_model.source
-        << "; generalized least squares; u v w: Gauss-Markov sigma";
+        // The joint fit weights by the covariance between dwells; eq4 and the tumble fit add
+        // the slow part to each dwell's variance (fit.cpp, tumble.cpp).
+        << (r.model == core::FitModel::Joint ? "; generalized least squares"
+                                              : "; slow part added to each dwell's variance")
+        << "; u v w: Gauss-Markov sigma";
     for (const core::AxisNoiseModel& a : r.noise_model.axes) out << " " << a.gm_sigma;
     out << " " << output_unit << ", tau";
     for (const core::AxisNoiseModel& a : r.noise_model.axes) out << " " << a.gm_tau_s;
