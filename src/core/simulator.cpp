@@ -119,27 +119,40 @@ bool has_slow_bias(const SimulationOptions& o) {
 std::vector<Eigen::Vector3d> slow_bias_path(const SimulationOptions& o, std::uint64_t count) {
   std::vector<Eigen::Vector3d> path(count + 1, Eigen::Vector3d::Zero());
   if (!has_slow_bias(o)) return path;
-  std::mt19937_64 rng(o.seed ^ 0x5bd1e9955bd1e995ull);
-  std::normal_distribution<double> normal(0.0, 1.0);
+  SlowBiasProcess bias(o.bias_gm_sigma, o.bias_gm_tau_s, o.bias_random_walk, o.seed);
   const double dt = 1.0 / o.rate_hz;
-  const double phi = o.bias_gm_sigma > 0.0 ? std::exp(-dt / o.bias_gm_tau_s) : 0.0;
-  const double gm_step = o.bias_gm_sigma * std::sqrt(std::max(0.0, 1.0 - phi * phi));
-  const double rw_step = o.bias_random_walk * std::sqrt(dt);
-  Eigen::Vector3d gm, rw = Eigen::Vector3d::Zero();
-  for (int s = 0; s < 3; ++s) gm(s) = o.bias_gm_sigma * normal(rng);
-  for (std::uint64_t k = 0; k <= count; ++k) {
-    if (k > 0) {
-      for (int s = 0; s < 3; ++s) {
-        gm(s) = phi * gm(s) + gm_step * normal(rng);
-        rw(s) += rw_step * normal(rng);
-      }
-    }
-    path[k] = gm + rw;
-  }
+  path[0] = bias.value();
+  for (std::uint64_t k = 1; k <= count; ++k) path[k] = bias.advance(dt);
   return path;
 }
 
 }  // namespace
+
+SlowBiasProcess::SlowBiasProcess(double gm_sigma, double gm_tau_s, double random_walk,
+                                 std::uint64_t seed)
+    : gm_sigma_(gm_sigma), gm_tau_s_(gm_tau_s), random_walk_(random_walk),
+      rng_(seed ^ 0x5bd1e9955bd1e995ull) {}
+
+Eigen::Vector3d SlowBiasProcess::value() {
+  if (!started_) {
+    for (int s = 0; s < 3; ++s) gm_(s) = gm_sigma_ * normal_(rng_);
+    started_ = true;
+  }
+  return gm_ + rw_;
+}
+
+Eigen::Vector3d SlowBiasProcess::advance(double dt_s) {
+  value();
+  if (!(dt_s > 0.0)) return gm_ + rw_;
+  const double phi = gm_sigma_ > 0.0 ? std::exp(-dt_s / gm_tau_s_) : 0.0;
+  const double gm_step = gm_sigma_ * std::sqrt(std::max(0.0, 1.0 - phi * phi));
+  const double rw_step = random_walk_ * std::sqrt(dt_s);
+  for (int s = 0; s < 3; ++s) {
+    gm_(s) = phi * gm_(s) + gm_step * normal_(rng_);
+    rw_(s) += rw_step * normal_(rng_);
+  }
+  return gm_ + rw_;
+}
 
 NoiseModel true_noise_model(const SimulationOptions& options) {
   NoiseModel m = white_noise_model(sample_noise_stds(options), options.rate_hz);

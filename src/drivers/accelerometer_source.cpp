@@ -77,7 +77,7 @@ SimulatedAccelerometer::SimulatedAccelerometer(const SimulatedAccelerometerOptio
       orientation_(std::move(orientation)),
       rng_(options.seed),
       temperature_rng_(options.seed ^ 0x7e3779b97f4a7c15ull),
-      bias_rng_(options.seed ^ 0x5bd1e9955bd1e995ull) {
+      bias_(options.bias_gm_sigma, options.bias_gm_tau_s, options.bias_random_walk, options.seed) {
   options_.validate();
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) S_row_major_.push_back(options_.truth.S(r, c));
@@ -137,7 +137,7 @@ void SimulatedAccelerometer::poll(double now_s, std::vector<core::ImuSample>* ou
     const double since_t0 = std::isfinite(time_origin_s_) ? t - time_origin_s_ : 0.0;
     Eigen::Vector3d R_out = outputs(specific_force(R), since_t0,
                                     temperature_c(since_t0) - options_.temperature_reference_c);
-    if (options_.bias_gm_sigma > 0.0 || options_.bias_random_walk > 0.0) R_out += slow_bias(t);
+    if (bias_.active()) R_out += slow_bias(t);
     if (noise_std_ > 0.0) {
       for (int i = 0; i < 3; ++i) R_out(i) += noise_std_ * normal_(rng_);
     }
@@ -174,26 +174,13 @@ double SimulatedAccelerometer::variance_per_axis() const {
   return noise_std_ * noise_std_ + q * q / 12.0;
 }
 
-// The exact discretization of the Gauss-Markov process over the time since the last sample (it
-// starts from its stationary distribution), and the random walk's increment.
+// The bias at the sample time t_s: the one slow-bias process (core::SlowBiasProcess) moved on by
+// the time since the last sample.
 Eigen::Vector3d SimulatedAccelerometer::slow_bias(double t_s) {
-  std::normal_distribution<double> normal(0.0, 1.0);
-  if (!std::isfinite(bias_t_s_)) {
-    for (int i = 0; i < 3; ++i) bias_gm_(i) = options_.bias_gm_sigma * normal(bias_rng_);
-    bias_t_s_ = t_s;
-  }
+  if (!std::isfinite(bias_t_s_)) bias_t_s_ = t_s;
   const double dt = std::max(0.0, t_s - bias_t_s_);
   bias_t_s_ = std::max(bias_t_s_, t_s);
-  if (dt > 0.0) {
-    const double phi =
-        options_.bias_gm_sigma > 0.0 ? std::exp(-dt / options_.bias_gm_tau_s) : 0.0;
-    const double step = options_.bias_gm_sigma * std::sqrt(std::max(0.0, 1.0 - phi * phi));
-    for (int i = 0; i < 3; ++i) {
-      bias_gm_(i) = phi * bias_gm_(i) + step * normal(bias_rng_);
-      bias_rw_(i) += options_.bias_random_walk * std::sqrt(dt) * normal(bias_rng_);
-    }
-  }
-  return bias_gm_ + bias_rw_;
+  return bias_.advance(dt);
 }
 
 void SimulatedAccelerometer::restart() {

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <random>
 #include <vector>
 
 #include "accel_intrinsics/core/constants.h"
@@ -65,6 +66,32 @@ struct SimulationOptions {
 // The noise model the options imply (white_std = sample_noise_stds, and the slow bias): what an
 // estimate from a long rest should find.
 NoiseModel true_noise_model(const SimulationOptions& options);
+
+// The slow bias of DESIGN.md section 12, one independent process per accelerometer: a
+// first-order Gauss-Markov process (stationary standard deviation gm_sigma, correlation time
+// gm_tau_s, started from its stationary distribution) plus a random walk from 0 (standard
+// deviation random_walk sqrt(t)), advanced by the exact discretization over any step. Its own
+// random stream (from seed), so switching it on leaves the other draws of a simulation as they
+// were. One definition for the simulators (simulate_position_table, simulate_recording) and the
+// stand's simulated accelerometer.
+class SlowBiasProcess {
+ public:
+  SlowBiasProcess(double gm_sigma, double gm_tau_s, double random_walk, std::uint64_t seed);
+  bool active() const { return gm_sigma_ > 0.0 || random_walk_ > 0.0; }
+  // The bias now; the first call draws the stationary start.
+  Eigen::Vector3d value();
+  // Moves the processes on by dt_s >= 0 seconds and returns the bias then.
+  Eigen::Vector3d advance(double dt_s);
+
+ private:
+  double gm_sigma_, gm_tau_s_, random_walk_;
+  std::mt19937_64 rng_;
+  std::normal_distribution<double> normal_{0.0, 1.0};
+  bool started_ = false;
+  Eigen::Vector3d gm_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d rw_ = Eigen::Vector3d::Zero();
+};
+
 
 // Raw samples of the first dwell, for the noise model (simulate_position_table fills it when
 // asked): stamps in seconds since the first gimbal command and the outputs.

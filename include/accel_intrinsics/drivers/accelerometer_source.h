@@ -122,10 +122,8 @@ class SimulatedAccelerometer : public AccelerometerSource {
   std::normal_distribution<double> normal_{0.0, 1.0};
   std::mt19937_64 temperature_rng_;  // readings: their own stream (the samples' stay the same)
   // The slow bias: its own stream, its state and the true time it was last advanced to.
-  std::mt19937_64 bias_rng_;
-  Eigen::Vector3d bias_gm_ = Eigen::Vector3d::Zero();
-  Eigen::Vector3d bias_rw_ = Eigen::Vector3d::Zero();
-  double bias_t_s_ = std::numeric_limits<double>::quiet_NaN();
+  core::SlowBiasProcess bias_;
+  double bias_t_s_ = std::numeric_limits<double>::quiet_NaN();  // time of the last bias value
   Eigen::Vector3d slow_bias(double t_s);
 };
 
