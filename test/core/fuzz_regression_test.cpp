@@ -10,11 +10,12 @@
 #include <vector>
 
 #include "accel_intrinsics/core/position_table.h"
+#include "../support/source_dir.h"
 
 namespace core = accel_intrinsics::core;
 
 TEST(FuzzRegression, PositionTableCorpusIsRejectedCleanlyOrRoundTrips) {
-  const std::string dir = std::string(ACCEL_SOURCE_DIR) + "/fuzz/corpus/position_table";
+  const std::string dir = accel_intrinsics::test_support::source_dir() + "/fuzz/corpus/position_table";
   DIR* handle = opendir(dir.c_str());
   ASSERT_NE(handle, nullptr) << dir;
   std::vector<std::string> files;

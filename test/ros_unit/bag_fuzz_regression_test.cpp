@@ -12,13 +12,14 @@
 #include <vector>
 
 #include "accel_intrinsics/ros/bag_input.h"
+#include "../support/source_dir.h"
 
 namespace ai = accel_intrinsics;
 
 namespace {
 
 std::vector<std::string> corpus_files() {
-  const std::string dir = std::string(ACCEL_SOURCE_DIR) + "/fuzz/corpus/bag_input";
+  const std::string dir = accel_intrinsics::test_support::source_dir() + "/fuzz/corpus/bag_input";
   std::vector<std::string> files;
   DIR* handle = opendir(dir.c_str());
   if (handle == nullptr) return files;
@@ -46,7 +47,7 @@ bool is_seed(const std::string& path) {
 
 TEST(BagFuzzRegression, CorpusReadsCleanlyOrFailsWithOneLine) {
   const std::vector<std::string> files = corpus_files();
-  ASSERT_GE(files.size(), 5u) << ACCEL_SOURCE_DIR << "/fuzz/corpus/bag_input";
+  ASSERT_GE(files.size(), 5u) << accel_intrinsics::test_support::source_dir() << "/fuzz/corpus/bag_input";
   int results = 0, errors = 0;
   for (const std::string& path : files) {
     std::vector<std::size_t> rows;

@@ -24,6 +24,7 @@
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/compare_results.h"
 #include "accel_intrinsics/ros/offline_fit.h"
+#include "../support/source_dir.h"
 #include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
@@ -36,7 +37,7 @@ namespace {
 using accel_intrinsics::test_support::read_file;
 using accel_intrinsics::test_support::TempDir;
 
-const std::string kBudget = std::string(ACCEL_SOURCE_DIR) + "/config/uncertainty_budget.yaml";
+const std::string kBudget = accel_intrinsics::test_support::source_dir() + "/config/uncertainty_budget.yaml";
 
 core::Device device(std::uint64_t seed) {
   core::Device d;
@@ -186,7 +187,7 @@ TEST(Certificate, StandaloneScriptOnASavedResultWithoutBudgetSaysTypeAOnly) {
   const std::string csv = simulated_csv(dir, "run.csv", device(3), 3);
   const json j = offline(csv, dir.file("r.json"), false);
   const std::string pdf = dir.file("c.pdf");
-  ASSERT_EQ(shell("/usr/bin/python3 " + std::string(ACCEL_SOURCE_DIR) +
+  ASSERT_EQ(shell("/usr/bin/python3 " + accel_intrinsics::test_support::source_dir() +
                   "/scripts/certificate_report --out " + pdf + " " + dir.file("r.json")),
             0);
   ASSERT_EQ(shell("pdftotext -layout " + pdf + " " + dir.file("c.txt")), 0);
@@ -200,7 +201,7 @@ TEST(Certificate, StandaloneScriptOnASavedResultWithoutBudgetSaysTypeAOnly) {
       std::regex_search(text, m, std::regex(R"(responsivity_u\s+([0-9.]+)\s+±\s+([0-9.]+))")));
   EXPECT_LE(std::abs(std::stod(m[2]) - U), 0.5 * std::pow(10.0, -decimals_for(U)) * (1 + 1e-9));
   // A missing result: exit 1, one line.
-  EXPECT_EQ(shell("/usr/bin/python3 " + std::string(ACCEL_SOURCE_DIR) +
+  EXPECT_EQ(shell("/usr/bin/python3 " + accel_intrinsics::test_support::source_dir() +
                   "/scripts/certificate_report --out " + pdf + " /nonexistent.json 2>/dev/null"),
             1);
 }
@@ -316,7 +317,7 @@ TEST(Certificate, StandaloneScriptReadsTheNodesYamlToo) {
   context.certificate = {{"lab", "YAML Lab"}};
   std::ofstream(dir.file("intrinsics.yaml")) << ai::io::result_yaml_text(report, context);
   const std::string pdf = dir.file("y.pdf");
-  ASSERT_EQ(shell("/usr/bin/python3 " + std::string(ACCEL_SOURCE_DIR) +
+  ASSERT_EQ(shell("/usr/bin/python3 " + accel_intrinsics::test_support::source_dir() +
                   "/scripts/certificate_report --out " + pdf + " " + dir.file("intrinsics.yaml")),
             0);
   ASSERT_EQ(shell("pdftotext -layout " + pdf + " " + dir.file("y.txt")), 0);

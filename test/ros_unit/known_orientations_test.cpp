@@ -16,6 +16,7 @@
 #include <string>
 
 #include "accel_intrinsics/ros/offline_fit.h"
+#include "../support/source_dir.h"
 
 namespace ai = accel_intrinsics;
 using json = nlohmann::json;
@@ -51,7 +52,7 @@ Truth read_truth(const std::string& path) {
 }
 
 json fit_example(const std::string& name) {
-  const std::string csv = std::string(ACCEL_SOURCE_DIR) + "/docs/examples/" + name;
+  const std::string csv = accel_intrinsics::test_support::source_dir() + "/docs/examples/" + name;
   char templ[] = "/tmp/known_orientations_XXXXXX";
   const std::string dir = ::mkdtemp(templ);
   ai::OfflineFitArguments args;
@@ -69,7 +70,7 @@ json fit_example(const std::string& name) {
 }
 
 void expect_truth(const std::string& name) {
-  const Truth t = read_truth(std::string(ACCEL_SOURCE_DIR) + "/docs/examples/" + name);
+  const Truth t = read_truth(accel_intrinsics::test_support::source_dir() + "/docs/examples/" + name);
   ASSERT_GT(t.counts_per_ms2, 0.0);
   const json j = fit_example(name);
   EXPECT_EQ(j["output_unit"], "counts");
@@ -104,7 +105,7 @@ TEST(KnownOrientations, TumbleOf24Example) { expect_truth("tumble24.csv"); }
 
 TEST(KnownOrientations, CountsWithoutOutputUnitFailTheQualityGate) {
   ai::OfflineFitArguments args;
-  args.csv = std::string(ACCEL_SOURCE_DIR) + "/docs/examples/six_position.csv";
+  args.csv = accel_intrinsics::test_support::source_dir() + "/docs/examples/six_position.csv";
   std::ostringstream out, err;
   EXPECT_EQ(ai::run_offline_fit(args, out, err), ai::kOfflineFitQualityFailed);
   EXPECT_NE(err.str().find("output_unit"), std::string::npos) << err.str();

@@ -11,12 +11,13 @@
 #include <string>
 
 #include "accel_intrinsics/ros/offline_fit.h"
+#include "../support/source_dir.h"
 
 namespace ai = accel_intrinsics;
 
 namespace {
 
-const std::string kSource = ACCEL_SOURCE_DIR;
+const std::string kSource = accel_intrinsics::test_support::source_dir();
 
 struct ArchiveDir {
   ArchiveDir() {

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "../support/source_dir.h"
 #include "../support/statistical_bounds.h"
 #include "../support/test_files.h"
 #include "accel_intrinsics/core/intrinsics.h"
@@ -28,7 +29,7 @@ namespace {
 
 using test_support::TempDir;
 
-const std::string kXsens = std::string(ACCEL_SOURCE_DIR) + "/test/data/imu_tk_xsens/";
+const std::string kXsens = accel_intrinsics::test_support::source_dir() + "/test/data/imu_tk_xsens/";
 
 nlohmann::json read_json(const std::string& path) {
   std::ifstream in(path);
