@@ -88,6 +88,13 @@ DeviceEmulator::~DeviceEmulator() {
   vanish();
 }
 
+std::string DeviceEmulator::fault_at_this_move() {
+  if (options_.fault == "none" || moves_++ != options_.fault_after) return "none";
+  if (options_.fault == "vanish") vanish();
+  if (options_.fault == "no_reply") silent_ = true;
+  return options_.fault;
+}
+
 void DeviceEmulator::vanish() {
   if (master_ >= 0) ::close(master_);
   if (slave_ >= 0) ::close(slave_);
@@ -316,20 +323,13 @@ void GrblEmulator::move(const std::string& line) {
     reply("ok\r\n");
     return;
   }
-  const bool inject = options_.fault != "none" && moves_++ == options_.fault_after;
-  if (inject && options_.fault == "vanish") {
-    vanish();
-    return;
-  }
-  if (inject && options_.fault == "no_reply") {
-    silent_ = true;
-    return;
-  }
-  if (inject && options_.fault == "garbage") {
+  const std::string fault = fault_at_this_move();
+  if (ends_conversation(fault)) return;
+  if (fault == "garbage") {
     reply(kGarbage);
     return;
   }
-  if (inject && options_.fault == "error") {
+  if (fault == "error") {
     reply("error:" + std::to_string(options_.error_code) + "\r\n");
     return;
   }
@@ -341,7 +341,7 @@ void GrblEmulator::move(const std::string& line) {
     longest = std::max(longest, a.t1 - t);
   }
   state_ = "Run";
-  if (inject && options_.fault == "alarm") alarm_at_ = t + 0.5 * longest;
+  if (fault == "alarm") alarm_at_ = t + 0.5 * longest;
   reply("ok\r\n");
 }
 
@@ -425,24 +425,17 @@ void Smc100Emulator::on_line(const std::string& received) {
       c.error = 'J';
       return;
     }
-    const bool inject = options_.fault != "none" && moves_++ == options_.fault_after;
-    if (inject && options_.fault == "vanish") {
-      vanish();
-      return;
-    }
-    if (inject && options_.fault == "no_reply") {
-      silent_ = true;
-      return;
-    }
-    if (inject && options_.fault == "garbage") garbage_pending_ = true;
-    if (inject && options_.fault == "error") {
+    const std::string fault = fault_at_this_move();
+    if (ends_conversation(fault)) return;
+    if (fault == "garbage") garbage_pending_ = true;
+    if (fault == "error") {
       c.error = 'G';  // displacement out of limits
       return;
     }
     c.target = value;
     c.axis.go(value, t, options_.rate_deg_s);
     c.state = 0x28;
-    if (inject && options_.fault == "alarm") c.alarm_at = t + 0.5 * (c.axis.t1 - t);
+    if (fault == "alarm") c.alarm_at = t + 0.5 * (c.axis.t1 - t);
   } else if (command == "OR" && arg.empty()) {
     if (c.state >= 0x0A && c.state <= 0x11) {
       c.state = 0x1E;

@@ -71,6 +71,13 @@ class DeviceEmulator {
   void log_command(const std::string& command);
   void vanish();
   double seconds_since_start() const;
+  // Counts a move command and returns the fault injected at it ("none" for all but the
+  // (fault_after + 1)-th). The faults that end the conversation (vanish, no_reply) are carried
+  // out here; the device answers the others (garbage, error, alarm) in its own protocol.
+  std::string fault_at_this_move();
+  static bool ends_conversation(const std::string& fault) {
+    return fault == "vanish" || fault == "no_reply";
+  }
 
   EmulatorOptions options_;
   bool silent_ = false;  // no_reply fault injected
@@ -82,6 +89,7 @@ class DeviceEmulator {
   mutable std::mutex mutex_;
   std::vector<std::string> commands_;
   std::string line_;  // received since the last LF
+  int moves_ = 0;      // move commands received (fault_at_this_move)
 };
 
 // An axis moving linearly at rate_deg_s.
@@ -112,7 +120,6 @@ class GrblEmulator : public DeviceEmulator {
   std::string state_ = "Idle";
   double homing_done_ = -1.0;  // reply "ok" to $H then
   double alarm_at_ = -1.0;     // injected alarm then
-  int moves_ = 0;
   int reports_ = 0;
 };
 
@@ -135,7 +142,6 @@ class Smc100Emulator : public DeviceEmulator {
     EmulatedAxis axis;
   };
   std::map<int, Controller> controllers_;
-  int moves_ = 0;
   bool garbage_pending_ = false;
 };
 
