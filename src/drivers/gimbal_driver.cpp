@@ -55,16 +55,6 @@ GimbalTransforms gimbal_transforms(core::Phase phase, double true_angle_rad, dou
   return out;
 }
 
-GimbalTarget target_of(const core::ScheduledPosition& position) {
-  GimbalTarget target;
-  target.phase = position.phase;
-  target.step = position.step;
-  target.steps = position.steps;
-  target.angle_rad = position.angle_rad;
-  target.approach = position.approach;
-  return target;
-}
-
 void SimulatedGimbalOptions::validate() const {
   if (!finite_non_negative(move_s)) throw std::invalid_argument("move_s must be finite and >= 0");
   if (!finite_non_negative(phase_change_s))

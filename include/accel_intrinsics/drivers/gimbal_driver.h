@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "accel_intrinsics/core/effects.h"
+#include "accel_intrinsics/core/gimbal_protocol.h"
 #include "accel_intrinsics/core/protocol.h"
 
 namespace accel_intrinsics {
@@ -42,51 +43,19 @@ double gimbal_angle(core::Phase phase, double true_angle_rad);
 // rotation axis raised by tilt_rad from horizontal.
 GimbalTransforms gimbal_transforms(core::Phase phase, double true_angle_rad, double tilt_rad);
 
-// Where the controller sends the gimbal: one position of the schedule.
-struct GimbalTarget {
-  core::Phase phase = core::Phase::X;
-  std::uint32_t step = 0;
-  std::uint32_t steps = 0;
-  double angle_rad = 0.0;  // commanded alpha
-  int approach = +1;       // +1 from below (increasing angle), -1 from above
-};
-// The target of one position of the schedule.
-GimbalTarget target_of(const core::ScheduledPosition& position);
+// The target, the fault and the protocol's part of the interface are declared in the core, which
+// cannot include this header (core/gimbal_protocol.h says why); here they keep their names.
+using core::GimbalFault;
+using core::GimbalTarget;
+using core::target_of;
 
-// A fault of a hardware gimbal (serial_gimbal.h); what() carries the device's own words. The
-// controller aborts the run with it.
-class GimbalFault : public std::runtime_error {
+// A gimbal the controller drives: what the protocol needs (core::GimbalMotion: name, move_to,
+// settled, settled_at, stop, update, manual_remount, recover, status_text) and the DUT's true
+// orientation for tf.
+class GimbalDriver : public core::GimbalMotion {
  public:
-  using std::runtime_error::runtime_error;
-};
-
-class GimbalDriver {
- public:
-  virtual ~GimbalDriver() = default;
-  // Short description for logs and diagnostics ("simulated").
-  virtual std::string name() const = 0;
-  // Starts a move to `target` at time t_s (seconds on the node's clock).
-  virtual void move_to(const GimbalTarget& target, double t_s) = 0;
-  // True once the gimbal has reached the last target and settled.
-  virtual bool settled(double t_s) const = 0;
-  // When settled(t_s): the time it settled (<= t_s), the stamp of SETTLED. A driver that only
-  // notices settling when asked returns t_s.
-  virtual double settled_at(double t_s) const { return t_s; }
-  // Stops where it is (abort).
-  virtual void stop(double t_s) = 0;
   // True orientation of the DUT at t_s (encoders on hardware; the model in simulation).
   virtual GimbalTransforms orientation(double t_s) const = 0;
-  // Talks to the hardware (status polls); the controller calls it every tick before settled()
-  // and orientation(). May throw GimbalFault, as may move_to(); stop() never throws.
-  virtual void update(double /*t_s*/) {}
-  // True when the DUT is remounted by hand before `phase` (a one-axis stage): the controller
-  // pauses at the phase change until gimbal_controller/continue.
-  virtual bool manual_remount(core::Phase /*phase*/) const { return false; }
-  // After a GimbalFault: brings the device back (reconnect, reset, homing as configured) so that
-  // the protocol can continue; throws GimbalFault with the device's words when it cannot.
-  virtual void recover(double /*t_s*/) {}
-  // The device's latest status in its own words ("" when it has none), for messages.
-  virtual std::string status_text() const { return ""; }
 };
 
 // The simulated gimbal. Its effects are the gimbal side of DESIGN.md section 3 and are read from

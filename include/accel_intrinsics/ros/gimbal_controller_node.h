@@ -1,6 +1,6 @@
-// The gimbal controller node: runs the protocol of build_schedule() as a state machine over a
-// GimbalDriver, publishes gimbal/command at each state change (MOVING, SETTLED, DONE),
-// broadcasts the true DUT orientation on tf (world -> gimbal -> dut), offers
+// The gimbal controller node: runs the protocol of build_schedule() (core::GimbalProtocol, the
+// state machine) over a GimbalDriver, publishes gimbal/command at each state change (MOVING,
+// SETTLED, DONE), broadcasts the true DUT orientation on tf (world -> gimbal -> dut), offers
 // gimbal_controller/start, gimbal_controller/abort and gimbal_controller/resume, and reports
 // progress (gimbal_controller/progress and diagnostic_updater on /diagnostics).
 //
@@ -32,6 +32,7 @@
 #include "accel_intrinsics/AbortRun.h"
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/ResumeAt.h"
+#include "accel_intrinsics/core/gimbal_protocol.h"
 #include "accel_intrinsics/core/protocol.h"
 #include "accel_intrinsics/drivers/gimbal_driver.h"
 #include "accel_intrinsics/drivers/serial_gimbal.h"
@@ -56,7 +57,8 @@ struct GimbalControllerOptions {
   std::string gimbal_frame = "gimbal";
   std::string dut_frame = "dut";
 
-  // Reads the private parameters; throws ParamError naming the parameter.
+  // Reads the private parameters (src/ros/gimbal_controller_options.cpp); throws ParamError
+  // naming the parameter.
   static GimbalControllerOptions load(const ros::NodeHandle& pnh);
 };
 
@@ -65,35 +67,39 @@ tf2_msgs::TFMessage make_tf_message(const GimbalTransforms& transforms, const ro
                                     const std::string& world_frame, const std::string& gimbal_frame,
                                     const std::string& dut_frame);
 
-// The backend named by options.driver; throws ParamError for an unknown name.
+// The backend named by options.driver (gimbal_controller_options.cpp); throws ParamError for an unknown name.
 std::unique_ptr<GimbalDriver> make_gimbal_driver(const GimbalControllerOptions& options);
 
+// The shell around core::GimbalProtocol (the state machine, core/gimbal_protocol.h): parameters,
+// the timer, the services, gimbal/command, tf, progress and diagnostics.
 class GimbalControllerNode {
  public:
-  enum class State { Idle, Starting, Moving, Dwelling, Remount, Done, Aborted };
+  using State = core::ProtocolState;
 
   GimbalControllerNode(ros::NodeHandle nh, ros::NodeHandle pnh,
                        const GimbalControllerOptions& options,
                        std::unique_ptr<GimbalDriver> driver);
 
-  // One step of the state machine at time `now` (the timer calls it; tests may too).
+  // One step of the protocol at time `now` (the timer calls it; tests may too).
   void tick(const ros::Time& now);
   // Begins a run (what the start service does); false with a reason when one is running.
   bool start(const ros::Time& now, std::string* message);
   // Stops a run (what the abort service does); publishes DONE to close the open dwell.
   bool abort(const ros::Time& now, const std::string& reason, std::string* message);
-  // Ends a manual remount (what the continue service does): the stage moves to the phase's
-  // first position again and settles. False with a reason when not in REMOUNT.
+  // Ends a manual remount (what the continue service does). False with a reason when not in
+  // REMOUNT.
   bool continue_after_remount(const ros::Time& now, std::string* message);
   // Moves to schedule position `index` now and continues the protocol from there, from any
   // state; index == size publishes DONE. Fills message (ends with "stamp=<t>").
   bool resume(const ros::Time& now, std::size_t index, const std::string& reason,
               std::string* message);
   // Schedule index of (phase, step, approach); size() if none. `after`: the one after it.
-  std::size_t find_position(core::Phase phase, std::uint32_t step, int approach, bool after) const;
+  std::size_t find_position(core::Phase phase, std::uint32_t step, int approach, bool after) const {
+    return protocol_->find_position(phase, step, approach, after);
+  }
 
-  State state() const { return state_; }
-  static const char* state_name(State state);
+  State state() const { return protocol_->state(); }
+  static const char* state_name(State state) { return core::protocol_state_name(state); }
 
  private:
   void on_timer(const ros::TimerEvent& event);
@@ -103,40 +109,21 @@ class GimbalControllerNode {
   bool on_continue(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool on_resume(ResumeAt::Request& req, ResumeAt::Response& res);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
-  void begin_move(std::size_t index, const ros::Time& now);
-  // Starts the driver's move to the current position; a GimbalFault aborts the run (false).
-  bool drive(const ros::Time& now);
-  void driver_fault(const ros::Time& now, const std::string& what);
-  bool running() const {
-    return state_ == State::Moving || state_ == State::Dwelling || state_ == State::Remount;
-  }
-  void publish_command(const ros::Time& now, std::uint8_t state, const core::ScheduledPosition& p);
+  // Publishes, logs and reports what the protocol asked for, at `now`.
+  void carry_out(const core::ProtocolActions& actions, const ros::Time& now);
+  bool reply(const core::ProtocolReply& r, const ros::Time& now, std::string* message);
   void publish_tf(const ros::Time& now);
-  void publish_progress(const ros::Time& now, bool log);
-  double time_left_s(const ros::Time& now) const;
+  void publish_progress(const ros::Time& now, const core::ProtocolStatus& status, bool log);
 
   ros::NodeHandle nh_, pnh_;
   GimbalControllerOptions options_;
   std::unique_ptr<GimbalDriver> driver_;
+  std::unique_ptr<core::GimbalProtocol> protocol_;
   ros::Publisher command_pub_, tf_pub_, progress_pub_;
   ros::ServiceServer start_srv_, abort_srv_, abort_run_srv_, resume_srv_, continue_srv_;
   ros::Timer timer_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
-
-  std::vector<core::ScheduledPosition> schedule_;
-  State state_ = State::Idle;
-  std::size_t index_ = 0;
-  ros::Time state_since_;    // stamp of the latest state change
-  ros::Time start_at_;       // first MOVING of a run that is starting
-  ros::Time last_progress_;  // last periodic progress message
   ros::Time last_tf_;
-  std::string last_error_;
-  bool autostart_pending_ = false;
-  std::size_t start_index_ = 0;  // where the next start begins (resume_* parameters)
-  std::uint64_t resumes_ = 0;
-  bool faulted_ = false;  // the driver raised a GimbalFault: recover() before moving again
-  // Recovers a faulted driver; false with the reason in last_error_.
-  bool recover_driver(const ros::Time& now);
 };
 
 }  // namespace accel_intrinsics
