@@ -355,16 +355,6 @@ SlowTumble slow_tumble(std::uint64_t seed, double gm_sigma, double gm_tau_s, dou
   return t;
 }
 
-// z-scores of |u|, |v|, |w|, the three angles (and the offsets) of a tumble fit against the truth.
-void add_tumble_z(const FitResult& f, const Device& truth, Coverage* c, bool offsets) {
-  const Intrinsics in = intrinsics_from_vectors(truth.S);
-  for (int s = 0; s < 3; ++s) {
-    c->add((f.intrinsics.responsivity(s) - in.responsivity(s)) / f.intrinsics.responsivity_std(s));
-    c->add((f.intrinsics.angles_rad(s) - in.angles_rad(s)) / f.intrinsics.angles_std_rad(s));
-    if (offsets) c->add((f.O(s) - truth.O(s)) / f.O_std(s));
-  }
-}
-
 TEST(CorrelatedNoise, TumbleSimulatorSlowBiasIsTheGimbalSimulatorsProcess) {
   // The white draws of a seed are the same with the bias on; the difference of the two streams
   // is the slow bias, whose first-rest Allan fit finds a slow part.
