@@ -14,12 +14,12 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
                                   const CalibrateOptions& options) {
   CalibrationReport report;
   report.certificate_refit_policy = options.certificate_refit;
-  // Noise that is not white (DESIGN.md section 12): the rest's slow part scaled up to the run's
-  // residuals when it falls short (discrepancy.h scale_slow_part_to_residuals), for the fit as for
-  // the analysis. Gimbal and position tables only (the tumble fit inflates variances instead).
+  // Noise that is not white (DESIGN.md section 12): the rest's slow part fitted again to the
+  // run's dwell means (discrepancy.h slow_part_from_run), for the fit as for the analysis.
+  // Gimbal and position tables only (the tumble fit inflates variances instead).
   FitOptions fit_options = options.fit;
   if (!fit_options.noise_model.white() && rows_with_unknown_orientation(table) == 0)
-    fit_options.noise_model = scale_slow_part_to_residuals(table, fit_options);
+    fit_options.noise_model = slow_part_from_run(table, fit_options);
   report.base_fit = fit(table, fit_options);
   report.certificate = report.base_fit;
   report.noise = dwell_noise(table);
@@ -29,6 +29,7 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
     tumble_options.local_gravity = options.fit.local_gravity;
     tumble_options.alpha = options.analysis.alpha;
     tumble_options.min_temperature_span_k = options.analysis.min_temperature_span_k;
+    tumble_options.noise_model = fit_options.noise_model;
     try {
       report.tumble_analysis = analyze_tumble(table, tumble_options);
     } catch (const std::exception& e) {

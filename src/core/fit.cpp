@@ -940,17 +940,8 @@ FitResult fit(const PositionTable& table, const FitOptions& options) {
     // Noise that is not white: each rest's variance gains the slow part of its mean (inflated
     // variances, not GLS: a hand tumble's rests are few, long and far apart in time, so their
     // correlation is small against their own slow variance, and the tumble fit's weights are
-    // per rest). The row std is rescaled so that std / sqrt(n) is the inflated standard error.
-    PositionTable inflated = table;
-    for (DwellRecord& row : inflated.rows) {
-      const double n = static_cast<double>(std::max<std::uint64_t>(row.n, 1));
-      for (int s = 0; s < 3; ++s) {
-        const double slow = options.noise_model.slow_covariance(s, row.t_start_s, row.t_end_s,
-                                                                row.t_start_s, row.t_end_s,
-                                                                row.t_start_s);
-        row.std(s) = std::sqrt(n * (row.std(s) * row.std(s) / n + slow));
-      }
-    }
+    // per rest).
+    const PositionTable inflated = with_slow_variance(table, options.noise_model);
     FitResult r = fit_tumble(inflated, tumble);
     r.noise_model = options.noise_model;
     return r;

@@ -551,6 +551,53 @@ std::optional<NoiseModel> noise_model_of_run(const PositionTable& table,
   return m;
 }
 
+void LongRestRecorder::add_command(const GimbalEvent& event) {
+  if (stage_ == Stage::BeforeRest && event.state == GimbalState::Settled) {
+    stage_ = Stage::InRest;
+  } else if (stage_ == Stage::InRest && event.state != GimbalState::Settled) {
+    stage_ = Stage::After;
+    end_s_ = event.stamp_s;
+  }
+}
+
+void LongRestRecorder::add_sample(const ImuSample& sample) {
+  // A sample stamped with the MOVING that ends the rest arrives after it and still belongs to it.
+  if (stage_ == Stage::BeforeRest || (stage_ == Stage::After && sample.stamp_s > end_s_)) return;
+  if (stamps_.size() >= max_samples_) {
+    ++dropped_;
+    return;
+  }
+  stamps_.push_back(sample.stamp_s);
+  outputs_.push_back(sample.outputs);
+}
+
+void LongRestRecorder::clear() {
+  stage_ = Stage::BeforeRest;
+  end_s_ = 0.0;
+  stamps_.clear();
+  outputs_.clear();
+  dropped_ = 0;
+}
+
+std::optional<NoiseModel> LongRestRecorder::noise_model(const PositionTable& table,
+                                                        double initial_rest_s) const {
+  return noise_model_of_run(table, stamps_, outputs_, initial_rest_s);
+}
+
+PositionTable with_slow_variance(const PositionTable& table, const NoiseModel& model) {
+  PositionTable out = table;
+  if (model.white()) return out;
+  for (DwellRecord& row : out.rows) {
+    const double n = static_cast<double>(std::max<std::uint64_t>(row.n, 1));
+    for (int s = 0; s < 3; ++s) {
+      const double slow = model.slow_covariance(s, row.t_start_s, row.t_end_s, row.t_start_s,
+                                                row.t_end_s, row.t_start_s);
+      row.std(s) = std::sqrt(n * (row.std(s) * row.std(s) / n + slow));
+    }
+  }
+  return out;
+}
+
 void DwellCorrelation::whiten(Eigen::VectorXd& v) const {
   const Eigen::Index n = static_cast<Eigen::Index>(rows);
   Eigen::VectorXd part(n);

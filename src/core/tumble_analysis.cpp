@@ -182,8 +182,11 @@ FitResult fit_tumble_with_effects(const PositionTable& table, const std::vector<
   return r;
 }
 
-TumbleAnalysis analyze_tumble(const PositionTable& table, const TumbleAnalysisOptions& options) {
+TumbleAnalysis analyze_tumble(const PositionTable& measured, const TumbleAnalysisOptions& options) {
   TumbleAnalysis out;
+  // Noise that is not white: every fit weights each rest by its variance with the slow part, as
+  // the tumble fit does (fit.h), so the tests judge the gap against the noise the rests have.
+  const PositionTable table = with_slow_variance(measured, options.noise_model);
   std::vector<Effect> candidates;
   for (const char* name : {"quadratic_nonlinearity", "cubic_nonlinearity", "offset_drift"})
     for (const char* target : {"u", "v", "w"}) candidates.push_back(make_effect(name, target));
@@ -246,6 +249,9 @@ TumbleAnalysis analyze_tumble(const PositionTable& table, const TumbleAnalysisOp
     out.after = fit_tumble_with_effects(table, named, options.local_gravity);
   }
   if (out.stop_reason.empty()) out.stop_reason = "max_effects reached";
+  out.noise_model = options.noise_model;
+  out.before.noise_model = options.noise_model;
+  out.after.noise_model = options.noise_model;
   return out;
 }
 

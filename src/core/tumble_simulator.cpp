@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "accel_intrinsics/core/simulator.h"
+
 namespace accel_intrinsics {
 namespace core {
 namespace {
@@ -56,6 +58,13 @@ void validate(const TumbleSimulationOptions& o) {
   if (!(o.min_turn_deg >= 0.0 && o.min_turn_deg <= 150.0))
     throw std::invalid_argument("tumble simulation: min_turn_deg must be in [0, 150]");
   if (o.poses < 1) throw std::invalid_argument("tumble simulation: poses must be >= 1");
+  for (double v : {o.bias_gm_sigma, o.bias_gm_tau_s, o.bias_random_walk})
+    if (!(std::isfinite(v) && v >= 0.0))
+      throw std::invalid_argument(
+          "tumble simulation: bias_gm_sigma, bias_gm_tau_s and bias_random_walk must be finite "
+          "and >= 0");
+  if (o.bias_gm_sigma > 0.0 && !(o.bias_gm_tau_s > 0.0))
+    throw std::invalid_argument("tumble simulation: bias_gm_sigma needs a positive bias_gm_tau_s");
   for (const Eigen::Vector3d& u : o.up_directions)
     if (!(u.norm() > 0.0) || !u.allFinite())
       throw std::invalid_argument("tumble simulation: an up direction is zero or not finite");
@@ -70,6 +79,9 @@ TumbleRecording simulate_hand_tumble(const TumbleSimulationOptions& o) {
   const double dt = 1.0 / o.rate_hz;
   const int poses = o.up_directions.empty() ? o.poses : static_cast<int>(o.up_directions.size());
 
+  SlowBiasProcess bias(o.bias_gm_sigma, o.bias_gm_tau_s, o.bias_random_walk, o.seed);
+  bool first_sample = true;
+
   TumbleRecording rec;
   std::vector<double> effect_values;
   for (const Effect& e : o.truth.effects) effect_values.push_back(e.value);
@@ -80,6 +92,10 @@ TumbleRecording simulate_hand_tumble(const TumbleSimulationOptions& o) {
     geom.direction = specific_force / magnitude;
     geom.time_s = t - o.start_time_s;
     Eigen::Vector3d out = predict_outputs(o.truth, geom, magnitude);
+    if (bias.active()) {
+      out += first_sample ? bias.value() : bias.advance(dt);
+      first_sample = false;
+    }
     for (int k = 0; k < 3; ++k) {
       out(k) += sigma(k) * normal(rng);
       if (o.quantization > 0.0) out(k) = std::round(out(k) / o.quantization) * o.quantization;
@@ -126,6 +142,18 @@ TumbleRecording simulate_hand_tumble(const TumbleSimulationOptions& o) {
     rest(o.rest_min_s + (o.rest_max_s - o.rest_min_s) * uniform(rng));
   }
   return rec;
+}
+
+NoiseModel true_noise_model(const TumbleSimulationOptions& o) {
+  const Eigen::Vector3d sigma = o.noise_scale * (o.noise_density * std::sqrt(o.rate_hz / 2.0));
+  NoiseModel m = white_noise_model(sigma, o.rate_hz);
+  for (int s = 0; s < 3; ++s) {
+    m.axes[s].gm_sigma = o.bias_gm_sigma;
+    m.axes[s].gm_tau_s = o.bias_gm_sigma > 0.0 ? o.bias_gm_tau_s : 0.0;
+    m.axes[s].rw_density = o.bias_random_walk;
+  }
+  m.source = "simulation truth";
+  return m;
 }
 
 Device random_tumble_device(std::uint64_t seed, double responsivity_spread,

@@ -171,6 +171,9 @@ void write_text_report(std::ostream& out, const core::CalibrationReport& report,
     const auto precision = out.precision(4);
     out << "\n  analysis (tumble): reduced chi2 " << a.before.reduced_chi2 << " -> "
         << a.after.reduced_chi2;
+    if (!a.noise_model.white())
+      out << " (each rest weighted with the slow part of the noise model, " << a.noise_model.kind()
+          << ")";
     if (a.named.empty()) out << "; no sensor effect named (" << a.stop_reason << ")";
     out << "\n";
     for (std::size_t i = 0; i < a.named.size(); ++i)

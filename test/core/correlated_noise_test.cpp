@@ -15,11 +15,15 @@
 #include <string>
 #include <vector>
 
+#include "accel_intrinsics/core/calibrate.h"
 #include "accel_intrinsics/core/discrepancy.h"
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/noise.h"
 #include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/rest_detection.h"
 #include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/tumble_analysis.h"
+#include "accel_intrinsics/core/tumble_simulator.h"
 #include "../support/statistical_bounds.h"
 
 namespace accel_intrinsics {
@@ -160,6 +164,49 @@ TEST(NoiseModel, FindLongRest) {
   EXPECT_EQ(r->row, 5u);
 }
 
+TEST(NoiseModel, LongRestRecorderKeepsTheRestOfALiveRun) {
+  // A live run as the calibration node sees it: the assembler releases events and samples in
+  // stamp order to the recorder, which keeps the first dwell's samples only; its noise model is
+  // the one of the whole recording's samples.
+  SimulationOptions so;
+  so.protocol.steps_per_phase = 6;
+  so.protocol.initial_rest_s = 60.0;
+  so.rate_hz = 50.0;
+  so.bias_gm_sigma = 0.002;
+  so.bias_gm_tau_s = 10.0;
+  so.seed = 4;
+  const Recording recording = simulate_recording(so);
+  DwellAssembler assembler;
+  LongRestRecorder recorder;
+  assembler.set_release_observers([&recorder](const GimbalEvent& e) { recorder.add_command(e); },
+                                  [&recorder](const ImuSample& s) { recorder.add_sample(s); });
+  feed_in_stamp_order(recording, &assembler);
+  const PositionTable& table = assembler.table();
+  ASSERT_FALSE(table.rows.empty());
+  EXPECT_GE(recorder.stamps().size(), table.rows.front().n);
+  EXPECT_LT(recorder.stamps().size(), recording.samples.size() / 2);
+  std::vector<double> stamps;
+  std::vector<Eigen::Vector3d> outputs;
+  for (const ImuSample& s : recording.samples) {
+    stamps.push_back(s.stamp_s);
+    outputs.push_back(s.outputs);
+  }
+  const std::optional<NoiseModel> whole = noise_model_of_run(table, stamps, outputs, 60.0);
+  const std::optional<NoiseModel> kept = recorder.noise_model(table, 60.0);
+  ASSERT_TRUE(whole.has_value());
+  ASSERT_TRUE(kept.has_value());
+  EXPECT_EQ(kept->rest_samples, whole->rest_samples);
+  for (int s = 0; s < 3; ++s) {
+    EXPECT_EQ(kept->axes[s].white_std, whole->axes[s].white_std);
+    EXPECT_EQ(kept->axes[s].gm_sigma, whole->axes[s].gm_sigma);
+  }
+  EXPECT_FALSE(kept->white());
+  // Started over: nothing kept until the next first SETTLED.
+  recorder.clear();
+  EXPECT_TRUE(recorder.stamps().empty());
+  EXPECT_FALSE(recorder.noise_model(table, 60.0).has_value());
+}
+
 // ---- the issue's scenario ----------------------------------------------------------------------
 
 // N = 24, 2 s dwells, a 120 s first dwell, a Gauss-Markov bias of 0.0015 m/s^2 and 30 s.
@@ -209,10 +256,13 @@ TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesGaussMarkov) {
   // 60 runs of the issue's scenario. With the white weights the z-scores spread far beyond 1
   // (the issue saw 5 sigma); with the noise model (true, and as estimated from the 120 s rest)
   // the RMS z-score is 1 within the chi-square band of 60 runs (per parameter; pooled over the
-  // 9 parameters the bands below are conservative). The band for the estimated model is wider
-  // (0.75 .. 1.35): a 120 s rest gives the slow part to about +-40 %.
+  // 9 parameters the bands below are conservative). The band for an estimated model is wider
+  // (0.75 .. 1.35): a 120 s rest gives the slow part to about +-40 %, and fitting it again to the
+  // run (slow_part_from_run, as calibrate() does) does not narrow it: measured when written
+  // 0.95 true, 1.24 rest's model, 1.23 fitted to the run (offsets 1.0, 1.43, 1.41): with an
+  // estimated slow part the uncertainties are about 20 % small, mostly on the offsets.
   const int runs = 60;
-  Coverage white, true_model, estimated;
+  Coverage white, true_model, estimated, refined;
   for (int k = 0; k < runs; ++k) {
     const SimulationOptions so = issue_scenario(500 + static_cast<std::uint64_t>(k));
     RestSamples rest;
@@ -226,10 +276,14 @@ TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesGaussMarkov) {
     add_z(ft, so, &true_model, true);
     fo.noise_model = estimated_model(table, rest, so.protocol.initial_rest_s);
     add_z(fit(table, fo), so, &estimated, true);
+    // As calibrate() fits: the rest's slow part fitted again to the run's dwell means.
+    fo.noise_model = slow_part_from_run(table, fo);
+    add_z(fit(table, fo), so, &refined, true);
   }
   std::cout << "[ INFO     ] Gauss-Markov coverage, RMS z over " << runs
             << " runs x 9 parameters: white " << white.rms() << ", true model "
-            << true_model.rms() << ", estimated model " << estimated.rms() << "\n";
+            << true_model.rms() << ", estimated model " << estimated.rms()
+            << ", estimated and fitted to the run " << refined.rms() << "\n";
   const std::pair<double, double> band = statistical_bounds::chi2_band(runs, 1e-3);
   const double lo = std::sqrt(band.first / runs), hi = std::sqrt(band.second / runs);
   EXPECT_GT(white.rms(), 1.5);  // the problem: white weights are overconfident
@@ -237,6 +291,8 @@ TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesGaussMarkov) {
   EXPECT_LT(true_model.rms(), hi);
   EXPECT_GT(estimated.rms(), 0.75);
   EXPECT_LT(estimated.rms(), 1.35);
+  EXPECT_GT(refined.rms(), 0.75);
+  EXPECT_LT(refined.rms(), 1.35);
 }
 
 TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesRandomWalk) {
@@ -265,6 +321,175 @@ TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesRandomWalk) {
   EXPECT_LT(true_model.rms(), hi);
 }
 
+// ---- the hand tumble under a slow bias -----------------------------------------------------------
+
+// A hand tumble (30 poses, 3.5-5 s rests, a 120 s first rest as the README recommends) with a
+// slow bias; its rests found
+// in the stream as offline_fit finds them.
+struct SlowTumble {
+  TumbleSimulationOptions options;
+  PositionTable table;
+  std::vector<double> stamps;
+  std::vector<Eigen::Vector3d> outputs;
+};
+
+SlowTumble slow_tumble(std::uint64_t seed, double gm_sigma, double gm_tau_s, double random_walk,
+                       const std::vector<Effect>& effects = {}) {
+  SlowTumble t;
+  t.options.truth = random_tumble_device(3000 + seed);
+  t.options.truth.effects = effects;
+  t.options.seed = seed;
+  t.options.poses = 30;
+  t.options.initial_rest_s = 120.0;
+  t.options.rest_min_s = 3.5;
+  t.options.rest_max_s = 5.0;
+  t.options.bias_gm_sigma = gm_sigma;
+  t.options.bias_gm_tau_s = gm_tau_s;
+  t.options.bias_random_walk = random_walk;
+  const TumbleRecording rec = simulate_hand_tumble(t.options);
+  t.table.rows = detect_rests(rec.samples).rests;
+  for (const ImuSample& s : rec.samples) {
+    t.stamps.push_back(s.stamp_s);
+    t.outputs.push_back(s.outputs);
+  }
+  return t;
+}
+
+TEST(CorrelatedNoise, TumbleSimulatorSlowBiasIsTheGimbalSimulatorsProcess) {
+  // The white draws of a seed are the same with the bias on; the difference of the two streams
+  // is the slow bias, whose first-rest Allan fit finds a slow part.
+  SlowTumble plain = slow_tumble(5, 0.0, 0.0, 0.0);
+  SlowTumble biased = slow_tumble(5, 0.003, 20.0, 0.0);
+  ASSERT_EQ(plain.outputs.size(), biased.outputs.size());
+  SlowBiasProcess process(0.003, 20.0, 0.0, 5);
+  const double dt = 1.0 / plain.options.rate_hz;
+  Eigen::Vector3d b = process.value();
+  for (std::size_t k = 0; k < plain.outputs.size(); ++k) {
+    if (k > 0) b = process.advance(dt);
+    if (k % 997 == 0) {
+      EXPECT_LT((biased.outputs[k] - plain.outputs[k] - b).norm(), 1e-12) << k;
+    }
+  }
+  const TumbleSimulationOptions& o = biased.options;
+  EXPECT_EQ(true_noise_model(o).kind(), "gauss_markov");
+  EXPECT_TRUE(true_noise_model(plain.options).white());
+  TumbleSimulationOptions bad = o;
+  bad.bias_gm_tau_s = 0.0;
+  EXPECT_THROW(simulate_hand_tumble(bad), std::invalid_argument);
+}
+
+// The tumble's reported uncertainties under a slow bias, as the tumble fit weighs the rests with
+// a noise model (each rest's variance inflated by the slow part of its mean, fit.h; no GLS across
+// rests). RMS z-scores over 60 runs, responsivities and angles apart from the offsets. Measured
+// when written (seeds 6000.. and 7000..; white / true model / estimated from the 120 s rest):
+//   Gauss-Markov 0.003 m/s^2, 30 s: intrinsics 1.05 / 0.81 / 0.92, offsets 1.79 / 1.47 / 1.75
+//   random walk 2e-4 (m/s^2)/sqrt(s): intrinsics 1.20 / 1.05 / 1.07
+// So the intrinsics are covered (under a 30 s bias conservatively: the rests' common slow error
+// is partly taken by the offsets), the offsets are not: neighbouring rests err together, which
+// the inflated variances ignore. What holds is asserted; GLS across rests would be the cure.
+struct TumbleCoverage {
+  Coverage intrinsics[3];  // white, true model, estimated model
+  Coverage offsets[3];
+};
+
+TumbleCoverage tumble_coverage(double gm_sigma, double gm_tau_s, double random_walk,
+                               std::uint64_t seed0, int runs) {
+  TumbleCoverage c;
+  for (int k = 0; k < runs; ++k) {
+    const SlowTumble t = slow_tumble(seed0 + static_cast<std::uint64_t>(k), gm_sigma, gm_tau_s,
+                                     random_walk);
+    const std::optional<NoiseModel> estimated = noise_model_of_run(t.table, t.stamps, t.outputs);
+    if (!estimated) throw std::runtime_error("no first rest of 30 s found");
+    const NoiseModel models[3] = {NoiseModel(), true_noise_model(t.options), *estimated};
+    const Intrinsics in = intrinsics_from_vectors(t.options.truth.S);
+    for (int m = 0; m < 3; ++m) {
+      FitOptions fo;
+      fo.noise_model = models[m];
+      const FitResult f = fit(t.table, fo);
+      for (int s = 0; s < 3; ++s) {
+        c.intrinsics[m].add((f.intrinsics.responsivity(s) - in.responsivity(s)) /
+                            f.intrinsics.responsivity_std(s));
+        c.intrinsics[m].add((f.intrinsics.angles_rad(s) - in.angles_rad(s)) /
+                            f.intrinsics.angles_std_rad(s));
+        c.offsets[m].add((f.O(s) - t.options.truth.O(s)) / f.O_std(s));
+      }
+    }
+  }
+  std::cout << "[ INFO     ] tumble RMS z (white, true model, estimated model): intrinsics "
+            << c.intrinsics[0].rms() << " " << c.intrinsics[1].rms() << " "
+            << c.intrinsics[2].rms() << ", offsets " << c.offsets[0].rms() << " "
+            << c.offsets[1].rms() << " " << c.offsets[2].rms() << "\n";
+  return c;
+}
+
+TEST(CorrelatedNoise, TumbleCoverageGaussMarkov) {
+  const int runs = 60;
+  const TumbleCoverage c = tumble_coverage(0.003, 30.0, 0.0, 6000, runs);
+  const std::pair<double, double> band = statistical_bounds::chi2_band(runs, 1e-3);
+  const double hi = std::sqrt(band.second / runs);
+  // The intrinsics: not overconfident with the model (conservative down to 0.6, see above).
+  for (int m : {1, 2}) {
+    EXPECT_LT(c.intrinsics[m].rms(), hi) << m;
+    EXPECT_GT(c.intrinsics[m].rms(), 0.6) << m;
+  }
+  // The offsets: white weights are overconfident, the model less so (not covered: see above).
+  EXPECT_GT(c.offsets[0].rms(), hi);
+  EXPECT_LT(c.offsets[1].rms(), c.offsets[0].rms());
+}
+
+TEST(CorrelatedNoise, TumbleCoverageRandomWalk) {
+  // The offsets carry the walk's value at the first rest, which no model of the run can see.
+  const int runs = 60;
+  const TumbleCoverage c = tumble_coverage(0.0, 0.0, 2e-4, 7000, runs);
+  const std::pair<double, double> band = statistical_bounds::chi2_band(runs, 1e-3);
+  const double lo = std::sqrt(band.first / runs), hi = std::sqrt(band.second / runs);
+  for (int m : {1, 2}) {
+    EXPECT_GT(c.intrinsics[m].rms(), lo) << m;
+    EXPECT_LT(c.intrinsics[m].rms(), hi) << m;
+  }
+}
+
+TEST(CorrelatedNoise, TumbleAnalysisWeighsTheRestsWithTheNoiseModel) {
+  // Effect-free tumbles under a Gauss-Markov bias, analysed with white weights and with the noise
+  // model estimated from the first rest: with the model every fit carries the rests' slow
+  // variance (its chi-square is below the white one). Its false-alarm rate is NOT alpha (2.5 %):
+  // measured when written 4 of 40 here (seeds 8000..) and 2 of 40 at seeds 6000.., white weights
+  // 6 and 3 of 40, mostly offset_drift: the rests' correlation, which the inflated variances
+  // ignore, reads as a drift. So the bound asserted is the binomial (1 - 1e-3) quantile at the
+  // measured 7.5 %. A hidden quadratic non-linearity is still named; calibrate() hands the fit's
+  // noise model to the analysis.
+  const int runs = 40;
+  int named_white = 0, named_model = 0;
+  for (int k = 0; k < runs; ++k) {
+    const SlowTumble t = slow_tumble(8000 + static_cast<std::uint64_t>(k), 0.003, 30.0, 0.0);
+    TumbleAnalysisOptions ao;
+    const TumbleAnalysis white = analyze_tumble(t.table, ao);
+    if (!white.named.empty()) ++named_white;
+    const std::optional<NoiseModel> m = noise_model_of_run(t.table, t.stamps, t.outputs);
+    ASSERT_TRUE(m.has_value());
+    ao.noise_model = *m;
+    const TumbleAnalysis a = analyze_tumble(t.table, ao);
+    EXPECT_EQ(a.noise_model.kind(), m->kind());
+    EXPECT_LT(a.before.chi2, white.before.chi2);
+    if (!a.named.empty()) ++named_model;
+  }
+  std::cout << "[ INFO     ] effect-free slow-bias tumbles naming an effect: white weights "
+            << named_white << "/" << runs << ", estimated model " << named_model << "/" << runs
+            << "\n";
+  EXPECT_LE(named_model, statistical_bounds::binomial_upper(runs, 0.075, 1e-3));
+
+  const Effect hidden = make_effect("quadratic_nonlinearity", "v", 4e-4);
+  const SlowTumble t = slow_tumble(8100, 0.003, 30.0, 0.0, {hidden});
+  CalibrateOptions co;
+  co.analyze = true;
+  co.fit.noise_model = *noise_model_of_run(t.table, t.stamps, t.outputs);
+  const CalibrationReport report = calibrate(t.table, nullptr, co);
+  ASSERT_TRUE(report.tumble_analysis.has_value()) << report.analysis_error;
+  EXPECT_FALSE(report.tumble_analysis->noise_model.white());
+  ASSERT_FALSE(report.tumble_analysis->named.empty()) << report.tumble_analysis->stop_reason;
+  EXPECT_EQ(report.tumble_analysis->named.front().effect.label(), hidden.label());
+}
+
 // ---- the analysis under a slow bias ------------------------------------------------------------
 
 AnalysisOptions quick_analysis(const NoiseModel& model) {
@@ -291,32 +516,34 @@ TEST(CorrelatedNoise, IssueScenarioNamesNoPhysicalEffect) {
 }
 
 TEST(CorrelatedNoise, FalseAlarmRateOnEffectFreeCorrelatedNoise) {
-  // Effect-free runs of the issue's scenario (seeds 1000..1079), analysed with the noise model
-  // (a) true and (b) estimated from the 120 s rest. (a) must name something in at most the
-  // binomial 1 - 1e-3 quantile at alpha (plus the Monte Carlo allowance of the max-T); (b) is
-  // reported and bounded at 3 alpha: the estimate of the slow part from one 120 s rest is rough,
-  // and an underestimate lets slow noise through (the analysis scales it up to the run's
-  // residuals, scale_slow_part_to_residuals). Measured when written: (a) 1 of 80, (b) 9 of 80
-  // (11 %; 20 of 80 before the scaling), white weights 10 of 10.
-  const int runs = 80;
+  // Effect-free runs of the issue's scenario, analysed with the noise model (a) true (seeds
+  // 1000..1079) and (b) estimated from the 120 s rest (seeds 1000..1159): each must name something
+  // in at most the binomial 1 - 1e-3 quantile at alpha (plus the Monte Carlo allowance of the
+  // max-T calibration). (b) holds because the analysis fits the slow part again to the whole
+  // run's dwell means (slow_part_from_run): the rest alone cannot tell a 30 s Gauss-Markov bias
+  // from a 3 s one or a random walk, and with the rest's model taken as known 9 of 80 runs named
+  // an effect (11 %). 160 runs, so that a rate of 11 % would fail here (bound 15 of 160).
+  // Measured when written: (a) 2 of 80, (b) 3 of 160, white weights 10 of 10.
+  const int runs_true = 80, runs_estimated = 160;
   const AnalysisOptions defaults = quick_analysis(NoiseModel());
   const double p = defaults.alpha + 4.0 * std::sqrt(defaults.alpha * (1.0 - defaults.alpha) /
                                                     defaults.monte_carlo_draws);
   int named_true = 0, named_estimated = 0, named_white = 0;
-  for (int k = 0; k < runs; ++k) {
+  for (int k = 0; k < runs_estimated; ++k) {
     const SimulationOptions so = issue_scenario(1000 + static_cast<std::uint64_t>(k));
     RestSamples rest;
     const PositionTable table = simulate_position_table(so, &rest);
-    if (!analyze(table, quick_analysis(true_noise_model(so))).effects.empty()) ++named_true;
+    if (k < runs_true && !analyze(table, quick_analysis(true_noise_model(so))).effects.empty())
+      ++named_true;
     const NoiseModel m = estimated_model(table, rest, 120.0);
     if (!analyze(table, quick_analysis(m)).effects.empty()) ++named_estimated;
     if (k < 10 && !analyze(table, quick_analysis(NoiseModel())).effects.empty()) ++named_white;
   }
   std::cout << "[ INFO     ] effect-free Gauss-Markov runs naming an effect: true model "
-            << named_true << "/" << runs << ", estimated model " << named_estimated << "/"
-            << runs << ", white weights " << named_white << "/10\n";
-  EXPECT_LE(named_true, statistical_bounds::binomial_upper(runs, p, 1e-3));
-  EXPECT_LE(named_estimated, statistical_bounds::binomial_upper(runs, 3.0 * p, 1e-3));
+            << named_true << "/" << runs_true << ", estimated model " << named_estimated << "/"
+            << runs_estimated << ", white weights " << named_white << "/10\n";
+  EXPECT_LE(named_true, statistical_bounds::binomial_upper(runs_true, p, 1e-3));
+  EXPECT_LE(named_estimated, statistical_bounds::binomial_upper(runs_estimated, p, 1e-3));
   EXPECT_GE(named_white, 5);  // the problem the noise model solves
 }
 
@@ -332,17 +559,22 @@ double gls_threshold(const PositionTable& table, const NoiseModel& m, EffectKind
 }
 
 TEST(CorrelatedNoise, HiddenEffectsAreNamedUnderCorrelatedNoise) {
-  // A quadratic non-linearity on v and a real linear offset drift on w, each at 4 times its
-  // detection threshold under the estimated noise model, hidden under the issue's slow bias: the
-  // analysis names each first, and the out-of-sample gap drops when it is added.
+  // A quadratic non-linearity on v at 4 times its detection threshold under the estimated noise
+  // model, and a real linear offset drift on w at 8 times, hidden under the issue's slow bias:
+  // the analysis names each first, and the out-of-sample gap drops when it is added. A drift
+  // needs more: the slow part fitted to the run (slow_part_from_run) takes part of a drift for
+  // slow noise. Measured when written, seeds 31..36: a drift at 4 times named in 2 of 6, at 6
+  // times in 5 of 6, at 8 times in 6 of 6.
   struct Case {
     EffectKind kind;
     int target;
+    double times_threshold;
   };
-  // A second (false) effect beside the hidden one: the estimated model's false-alarm rate is about
-  // 11 % (FalseAlarmRateOnEffectFreeCorrelatedNoise), so at most 2 of the 6 runs may have one.
+  // A second (false) effect beside the hidden one: allowed at the analysis' false-alarm rate
+  // (FalseAlarmRateOnEffectFreeCorrelatedNoise), binomial (1 - 1e-3) over the 6 runs.
   int runs_with_extra = 0;
-  for (const Case c : {Case{EffectKind::QuadraticNonlinearity, 1}, Case{EffectKind::OffsetDrift, 2}}) {
+  for (const Case c : {Case{EffectKind::QuadraticNonlinearity, 1, 4.0},
+                       Case{EffectKind::OffsetDrift, 2, 8.0}}) {
     for (std::uint64_t seed : {31u, 32u, 33u}) {
       SimulationOptions so = issue_scenario(seed);
       RestSamples rest;
@@ -350,7 +582,7 @@ TEST(CorrelatedNoise, HiddenEffectsAreNamedUnderCorrelatedNoise) {
       const NoiseModel m = estimated_model(plain, rest, 120.0);
       const double threshold = gls_threshold(plain, m, c.kind, c.target);
       ASSERT_GT(threshold, 0.0);
-      const Effect hidden{c.kind, c.target, 4.0 * threshold};
+      const Effect hidden{c.kind, c.target, c.times_threshold * threshold};
       so.truth.effects = {hidden};
       const PositionTable table = simulate_position_table(so, &rest);
       const AnalysisResult a = analyze(table, quick_analysis(estimated_model(table, rest, 120.0)));
@@ -364,14 +596,15 @@ TEST(CorrelatedNoise, HiddenEffectsAreNamedUnderCorrelatedNoise) {
                 4.0 * a.effects.front().std);
     }
   }
-  EXPECT_LE(runs_with_extra, 2);
+  EXPECT_LE(runs_with_extra, statistical_bounds::binomial_upper(6, 0.039, 1e-3));
 }
 
 TEST(CorrelatedNoise, Ar1TableWrittenInTheTestNamesNothingAndCovers) {
   // Dwell means written here from the equations R = S g f + O + bias + white (the AR(1) bias of
   // ar1_record, sampled at 50 Hz over the protocol's timeline), not by the simulator. Ten runs:
-  // the analysis with the model estimated from the 120 s rest names at most one (binomial at 3
-  // alpha, 1 - 1e-3), and the z-scores of the fitted S against the truth have RMS below 1.5.
+  // the analysis with the model estimated from the 120 s rest names an effect in at most the
+  // binomial (1 - 1e-3) quantile at alpha (with the Monte Carlo allowance), and the z-scores of
+  // the fitted S against the truth have RMS below 1.5.
   ProtocolOptions protocol;
   protocol.steps_per_phase = 24;
   protocol.initial_rest_s = 120.0;
@@ -433,7 +666,10 @@ TEST(CorrelatedNoise, Ar1TableWrittenInTheTestNamesNothingAndCovers) {
   }
   std::cout << "[ INFO     ] AR(1) tables written in the test: " << named << "/" << runs
             << " name an effect; RMS z of S " << cov.rms() << "\n";
-  EXPECT_LE(named, statistical_bounds::binomial_upper(runs, 3.0 * 0.03, 1e-3));
+  const AnalysisOptions defaults = quick_analysis(NoiseModel());
+  const double p = defaults.alpha + 4.0 * std::sqrt(defaults.alpha * (1.0 - defaults.alpha) /
+                                                    defaults.monte_carlo_draws);
+  EXPECT_LE(named, statistical_bounds::binomial_upper(runs, p, 1e-3));
   EXPECT_LT(cov.rms(), 1.5);
   EXPECT_GT(cov.rms(), 0.6);
 }

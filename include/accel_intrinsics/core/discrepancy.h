@@ -164,14 +164,20 @@ struct CrossValidatedGap {
 CrossValidatedGap cross_validated_gap(const PositionTable& table, const FitOptions& options,
                                       int folds);
 
-// The slow part of a noise model estimated from one long rest is rough (a 120 s rest gives a 30 s
-// Gauss-Markov bias to about +-40 %), and an underestimate lets slow noise through as effects.
-// This scales each axis' slow part (Gauss-Markov variance and random-walk rate together) by the
-// factor c_s >= 1 that brings that accelerometer's generalized chi-square of the base fit (S, O
-// and options.effects, the GLS of fit.h) to its degrees of freedom: the amplitude from the whole
-// run's dwells, the shape (tau) from the rest. Never scales down (a rest that saw more than the
-// run keeps its model). White models come back unchanged. The source says the factors.
-NoiseModel scale_slow_part_to_residuals(const PositionTable& table, const FitOptions& options);
+// The slow part of a noise model estimated from one long rest is rough: a 120 s rest cannot tell
+// a 30 s Gauss-Markov bias from a random walk or from a 3 s one (its estimated correlation time
+// ranged from 0.5 s to 500 s over 80 such rests), and the fit treated that guess as known. An
+// underestimated correlation time lets the slow noise through to the screening as drift or angle
+// effects (11 % of effect-free runs named one, against alpha 2.5 %). So the slow part is fitted
+// again to the whole run's dwell means, which span many correlation times: per accelerometer, the
+// restricted (REML) likelihood of the base fit's residuals (S, O and options.effects projected
+// out, so the fitted terms do not eat into the noise) under C = D^2 + a K, D the dwells' white
+// standard errors and K one of a set of shapes: a unit Gauss-Markov process at correlation times
+// from 0.5 s to 5 times the run, a unit random walk, and the rest's own slow part; the amplitude
+// a >= 0 and the shape of highest likelihood are kept (a = 0: the run shows no slow part on that
+// axis). The rest decides that there is a slow part (white models come back unchanged) and
+// offers its shape; the run sets amplitude and shape. The source says what was chosen.
+NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& options);
 
 struct Gap {
   GapSummary summary;

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/position_table.h"
 
 namespace accel_intrinsics {
@@ -167,6 +168,39 @@ std::optional<NoiseModel> noise_model_of_run(const PositionTable& table,
                                              const std::vector<double>& stamps_s,
                                              const std::vector<Eigen::Vector3d>& outputs,
                                              double initial_rest_s = 0.0);
+
+// The raw samples of a live run's long rest, for noise_model_of_run (DESIGN.md section 12), in
+// bounded memory: fed every gimbal event and sample in stamp order (as MoveSampleRecorder, from
+// DwellAssembler::set_release_observers), it keeps the samples from the run's first SETTLED to
+// the MOVING after it (the first dwell, which the protocol holds for initial_rest_s), at most
+// max_samples (later ones are counted in samples_dropped). clear() when the run starts over.
+class LongRestRecorder {
+ public:
+  explicit LongRestRecorder(std::size_t max_samples = 1000000) : max_samples_(max_samples) {}
+  void add_command(const GimbalEvent& event);
+  void add_sample(const ImuSample& sample);
+  void clear();
+  const std::vector<double>& stamps() const { return stamps_; }
+  const std::vector<Eigen::Vector3d>& outputs() const { return outputs_; }
+  std::size_t samples_dropped() const { return dropped_; }
+  // noise_model_of_run(table, stamps(), outputs(), initial_rest_s).
+  std::optional<NoiseModel> noise_model(const PositionTable& table, double initial_rest_s) const;
+
+ private:
+  enum class Stage { BeforeRest, InRest, After };
+  std::size_t max_samples_;
+  Stage stage_ = Stage::BeforeRest;
+  double end_s_ = 0.0;  // stamp of the MOVING that ended the rest
+  std::vector<double> stamps_;
+  std::vector<Eigen::Vector3d> outputs_;
+  std::size_t dropped_ = 0;
+};
+
+// The table with each dwell's variance inflated by the slow part of its mean (the random walk from
+// the dwell's start): row std rescaled so that std / sqrt(n) is sqrt(std^2 / n + slow). For fits
+// that weight each dwell on its own (the tumble fit and its analysis; fit.h says why not GLS
+// there). A white model leaves the table as it is.
+PositionTable with_slow_variance(const PositionTable& table, const NoiseModel& model);
 
 // The dwell means' covariance a noise model implies, per accelerometer s: C_s = D_s R_s D_s with
 // D_s = diag(se_s) (the white standard errors the fit uses) and R_s = I + D_s^-1 K_s D_s^-1 (K_s:

@@ -12,8 +12,11 @@
 // min_temperature_span_k) is refitted; its chi2 drop is tested as an F(1, dof) statistic (chi2(1)
 // when the reduced chi-square is not above 1), Holm-adjusted over the candidates of the step. The
 // best candidate below alpha is named, and the screening repeats (greedy forward selection, up to
-// max_effects). Not screened, and said so: the gimbal effects (angle offset and scale, axis tilt,
-// backlash: there are no angles), timing lag (no commanded moves).
+// max_effects). With a noise model that has a slow part (the first long rest's, noise.h), every
+// fit weights each rest by its variance including the slow part of its mean (with_slow_variance,
+// as the tumble fit does), so a slow bias is not read as an effect. Not screened, and said so:
+// the gimbal effects (angle offset and scale, axis tilt, backlash: there are no angles), timing
+// lag (no commanded moves).
 #pragma once
 
 #include <string>
@@ -22,6 +25,7 @@
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/core/effects.h"
 #include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/noise.h"
 #include "accel_intrinsics/core/position_table.h"
 
 namespace accel_intrinsics {
@@ -32,6 +36,9 @@ struct TumbleAnalysisOptions {
   double alpha = 0.025;  // family-wise per step (Holm), as the gimbal analysis
   int max_effects = 3;
   double min_temperature_span_k = 0.5;
+  // The noise of the rest means: white (std / sqrt(n)) by default; with a slow part, added to
+  // each rest's variance (noise.h with_slow_variance).
+  NoiseModel noise_model;
 };
 
 struct TumbleEffectTest {
@@ -50,6 +57,7 @@ struct TumbleAnalysis {
   std::vector<std::vector<TumbleEffectTest>> steps;  // every candidate of every step
   std::vector<std::string> not_screened;
   std::string stop_reason;
+  NoiseModel noise_model;  // what every fit used
 };
 
 // The fit of the model above with `effects` (their values the start). Throws FitError.

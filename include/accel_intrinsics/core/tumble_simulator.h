@@ -1,7 +1,8 @@
 // A simulated hand tumble (DESIGN.md section 11): a person holds the device still in random
 // orientations and turns it between them, with the hand's linear acceleration during the turns.
 // The outputs come from the one model (model.h: predict_outputs with a known direction), plus
-// white noise and optional quantization, in whatever unit S and O are in (m/s^2, or counts).
+// white noise, an optional slow bias (DESIGN.md section 12) and optional quantization, in
+// whatever unit S and O are in (m/s^2, or counts).
 // Seeded and reproducible. The truth of each rest is returned beside the samples.
 #pragma once
 
@@ -12,6 +13,7 @@
 #include "accel_intrinsics/core/constants.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/model.h"
+#include "accel_intrinsics/core/noise.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -38,6 +40,14 @@ struct TumbleSimulationOptions {
   double local_gravity = kStandardGravity;
   double start_time_s = 0.0;
   std::uint64_t seed = 1;
+  // Slow bias (DESIGN.md section 12), in output units, the gimbal simulator's process
+  // (simulator.h SlowBiasProcess): a Gauss-Markov bias of standard deviation bias_gm_sigma and
+  // correlation time bias_gm_tau_s and a random walk of bias_random_walk per sqrt(s) from 0 at
+  // start_time_s, per accelerometer, added to every sample. Its own random stream: the other
+  // draws of a seed are the same with or without it. 0 (default): none.
+  double bias_gm_sigma = 0.0;
+  double bias_gm_tau_s = 0.0;
+  double bias_random_walk = 0.0;
 };
 
 struct TrueRest {
@@ -55,6 +65,10 @@ struct TumbleRecording {
 void validate(const TumbleSimulationOptions& options);
 
 TumbleRecording simulate_hand_tumble(const TumbleSimulationOptions& options);
+
+// The noise model the options imply (white per-sample std and the slow bias; random walk from
+// start_time_s): what an estimate from the first rest should find.
+NoiseModel true_noise_model(const TumbleSimulationOptions& options);
 
 // A random device near the identity: responsivities 1 +- spread, axes a few tenths of a degree
 // from orthogonal, offsets up to offset_max, and with random_mounting its axes turned at random in
