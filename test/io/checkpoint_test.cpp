@@ -79,7 +79,8 @@ TEST(Checkpoint, TornLastLineIsDroppedAndTheRunContinuesAfterTheCompleteRows) {
 }
 
 // A run with temperatures checkpoints the temperature_c column and restores it; a checkpoint
-// without the column is continued without it (the file stays one table).
+// without the column continued by a row with a temperature gains the column (the file stays one
+// table, the earlier rows without a value).
 TEST(Checkpoint, TemperaturesAreKeptAndAnOldTableIsContinuedInItsOwnColumns) {
   TempDir dir;
   core::CheckpointState state;
@@ -126,7 +127,8 @@ TEST(Checkpoint, TemperaturesAreKeptAndAnOldTableIsContinuedInItsOwnColumns) {
   const auto restored = CheckpointFiles(old_dir.path(), "o_").load();
   ASSERT_TRUE(restored.has_value());  // still one readable table
   ASSERT_EQ(restored->table.rows.size(), 2u);
-  EXPECT_FALSE(restored->table.rows[1].has_temperature());
+  EXPECT_FALSE(restored->table.rows[0].has_temperature());
+  EXPECT_EQ(restored->table.rows[1].temperature_c, 30.0);
 }
 
 // A channel that starts late (the first dwell had no temperature reading, the later ones do)
