@@ -56,7 +56,6 @@ CalibrationRun::CalibrationRun(const RunOptions& options)
 
 void CalibrationRun::connect_assembler() {
   moves_.clear();
-  assembler_.set_dwell_callback([this](const DwellRecord& row) { completed_rows_.push_back(row); });
   if (options_.record_moves) {
     assembler_.set_release_observers([this](const GimbalEvent& e) { moves_.add_command(e); },
                                      [this](const ImuSample& s) { moves_.add_sample(s); });
@@ -144,8 +143,7 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
   if (run_start && previous_run_over && !rewind_pending()) {
     if (done_pending_ && fault_.empty()) {
       // The previous run's DONE is still in the reorder window: finish it first.
-      assembler_.flush();
-      process_completed_rows();
+      accept_rows(assembler_.flush());
       done_pending_ = false;
       emit_fit();
     }
@@ -189,8 +187,7 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
       }
     }
   }
-  assembler_.add_command(event);
-  process_completed_rows();
+  accept_rows(assembler_.add_command(event));
   if (event.state == GimbalState::Done) {
     done_pending_ = true;
     done_stamp_s_ = event.stamp_s;
@@ -204,9 +201,9 @@ RunActions CalibrationRun::on_sample(const ImuSample& received) {
   ImuSample sample = received;
   sample.stamp_s += options_.imu_time_offset_s;
   if (sample.stamp_s > newest_sample_stamp_s_) newest_sample_stamp_s_ = sample.stamp_s;
-  assembler_.add_sample(sample);
+  const CompletedRows rows = assembler_.add_sample(sample);
   clock_check_.add_sample(sample);
-  if (!completed_rows_.empty()) process_completed_rows();
+  if (!rows.empty()) accept_rows(rows);
   const AssemblerCounters& c = assembler_.counters();
   if (c.dropped_non_finite != warned_.dropped_non_finite ||
       c.dropped_backwards != warned_.dropped_backwards || c.dropped_late != warned_.dropped_late) {
@@ -218,8 +215,7 @@ RunActions CalibrationRun::on_sample(const ImuSample& received) {
 RunActions CalibrationRun::on_channel_sample(const ChannelSample& received) {
   ChannelSample reading = received;
   reading.stamp_s += options_.imu_time_offset_s;  // the IMU's clock
-  assembler_.add_channel_sample(reading);
-  if (!completed_rows_.empty()) process_completed_rows();
+  accept_rows(assembler_.add_channel_sample(reading));
   return take_actions();
 }
 
@@ -274,11 +270,10 @@ void CalibrationRun::retry_controller_fault() {
   // assembler restarts. A dwell the fault cut short is measured again (blackout from its
   // SETTLED); after a fault in a move, from the MOVING that ended the previous dwell.
   if (f.in_dwell) {
-    assembler_.flush_until(f.stamp_s - 1e-9);
+    accept_rows(assembler_.flush_until(f.stamp_s - 1e-9));
   } else {
-    assembler_.flush_until(f.stamp_s);
+    accept_rows(assembler_.flush_until(f.stamp_s));
   }
-  process_completed_rows();
   const int approach = approach_of_next_row(f.phase, f.step);
   // Retried (rewind at the position) or, after max_retries, the run is aborted with the
   // controller's words.
@@ -316,8 +311,7 @@ RunActions CalibrationRun::tick(double now_s) {
   }
   const double window = options_.assembler.reorder_window_s;
   if (done_pending_ && now_s >= done_stamp_s_ + window && !controller_fault_pending_) {
-    assembler_.flush();
-    process_completed_rows();
+    accept_rows(assembler_.flush());
     done_pending_ = false;
     warn_on_new_drops();
     check_watchdogs(now_s);
@@ -330,8 +324,7 @@ RunActions CalibrationRun::tick(double now_s) {
       log(RunAction::Level::Warn, "DONE but a position is to be measured again; no fit yet");
     }
   } else if (now_s > window) {
-    assembler_.flush_until(now_s - window);
-    process_completed_rows();
+    accept_rows(assembler_.flush_until(now_s - window));
     warn_on_new_drops();
   }
   check_watchdogs(now_s);
@@ -450,7 +443,6 @@ RunActions CalibrationRun::reset(const std::string& reason) {
   assembler_.reset();
   clock_check_.reset();
   connect_assembler();
-  completed_rows_.clear();
   done_pending_ = false;
   fitting_ = false;
   ++fit_ticket_;  // a fit still running belongs to the discarded run
@@ -489,12 +481,9 @@ RunActions CalibrationRun::reset(const std::string& reason) {
 
 // ---- Dwells, faults, resume ---------------------------------------------------------------------
 
-void CalibrationRun::process_completed_rows() {
-  while (!completed_rows_.empty()) {
-    std::vector<DwellRecord> rows;
-    rows.swap(completed_rows_);
-    for (const DwellRecord& row : rows) accept_row(row);
-  }
+void CalibrationRun::accept_rows(const CompletedRows& rows) {
+  // The assembler has returned: a row that raises a fault may restart it.
+  for (const DwellRecord& row : rows) accept_row(row);
 }
 
 void CalibrationRun::accept_row(const DwellRecord& row) {
@@ -584,8 +573,7 @@ void CalibrationRun::raise_fault(const std::string& what, Phase phase, std::uint
 
 void CalibrationRun::restart_assembler() {
   // The rewound protocol starts on a fresh assembler: events of the abandoned stretch still
-  // buffered are dropped with the old one; its counters carry over. Never called from inside the
-  // assembler (its rows are processed after it returns).
+  // buffered are dropped with the old one; its counters carry over.
   add_counters(assembler_.counters(), &counters_before_);
   if (!assembler_.counters().last_warning.empty()) {  // the newest warning wins
     counters_before_.last_warning = assembler_.counters().last_warning;
@@ -676,8 +664,7 @@ void CalibrationRun::check_watchdogs(double now_s) {
            << " (imu_timeout_s = " << options_.imu_timeout_s << ")";
       live_in_dwell_ = false;
       // Dwells before this one are complete: process them before the assembler restarts.
-      assembler_.flush_until(dwell_start - 1e-9);
-      process_completed_rows();
+      accept_rows(assembler_.flush_until(dwell_start - 1e-9));
       raise_fault(what.str(), phase, step, approach, dwell_start);
     }
   }

@@ -44,46 +44,52 @@ void DwellAssembler::reset() {
   counters_ = AssemblerCounters();
 }
 
-void DwellAssembler::add_command(const GimbalEvent& event) {
+CompletedRows DwellAssembler::add_command(const GimbalEvent& event) {
   ++counters_.commands;
+  CompletedRows out;
   if (!std::isfinite(event.stamp_s) || !std::isfinite(event.angle_rad)) {
     ++counters_.commands_out_of_order;
     counters_.last_warning = "gimbal command with a non-finite stamp or angle ignored";
-    return;
+    return out;
   }
   if (event.stamp_s < released_until_s_) {
     // Too late to put in order: the samples around it have been assigned already.
     ++counters_.commands_out_of_order;
     counters_.last_warning = "gimbal command " + describe(event) + " arrived after its stamp was processed";
   }
-  push(Event{event.stamp_s, next_sequence_++, event});
+  push(Event{event.stamp_s, next_sequence_++, event}, &out);
+  return out;
 }
 
-void DwellAssembler::add_sample(const ImuSample& sample) {
+CompletedRows DwellAssembler::add_sample(const ImuSample& sample) {
+  CompletedRows out;
   if (!std::isfinite(sample.stamp_s) || !sample.outputs.allFinite()) {
     ++counters_.dropped_non_finite;
-    return;
+    return out;
   }
   if (sample.stamp_s < released_until_s_) {
     ++counters_.dropped_late;
-    return;
+    return out;
   }
-  push(Event{sample.stamp_s, next_sequence_++, sample});
+  push(Event{sample.stamp_s, next_sequence_++, sample}, &out);
+  return out;
 }
 
-void DwellAssembler::add_channel_sample(const ChannelSample& reading) {
+CompletedRows DwellAssembler::add_channel_sample(const ChannelSample& reading) {
+  CompletedRows out;
   if (!std::isfinite(reading.stamp_s) || !std::isfinite(reading.value) ||
       reading.stamp_s < released_until_s_) {
     ++counters_.channel_dropped[channel_index(reading.channel)];
-    return;
+    return out;
   }
-  push(Event{reading.stamp_s, next_sequence_++, reading});
+  push(Event{reading.stamp_s, next_sequence_++, reading}, &out);
+  return out;
 }
 
-void DwellAssembler::push(Event event) {
+void DwellAssembler::push(Event event, CompletedRows* out) {
   if (event.stamp_s > newest_stamp_s_) newest_stamp_s_ = event.stamp_s;
   if (event.stamp_s < released_until_s_) {
-    process(event);  // a late command: best effort, already counted
+    process(event, out);  // a late command: best effort, already counted
     return;
   }
   if (in_order_.empty() || !Later()(in_order_.back(), event)) {
@@ -91,14 +97,18 @@ void DwellAssembler::push(Event event) {
   } else {
     pending_.push(std::move(event));
   }
-  release_until(newest_stamp_s_ - options_.reorder_window_s);
+  release_until(newest_stamp_s_ - options_.reorder_window_s, out);
 }
 
-void DwellAssembler::flush_until(double stamp_s) { release_until(stamp_s); }
+CompletedRows DwellAssembler::flush_until(double stamp_s) {
+  CompletedRows out;
+  release_until(stamp_s, &out);
+  return out;
+}
 
-void DwellAssembler::flush() { release_until(std::numeric_limits<double>::infinity()); }
+CompletedRows DwellAssembler::flush() { return flush_until(std::numeric_limits<double>::infinity()); }
 
-void DwellAssembler::release_until(double stamp_s) {
+void DwellAssembler::release_until(double stamp_s, CompletedRows* out) {
   while (!pending_empty()) {
     // The earlier of the two fronts (Later: a strict total order, sequences are unique).
     const bool from_heap =
@@ -111,15 +121,15 @@ void DwellAssembler::release_until(double stamp_s) {
       in_order_.pop_front();
     }
     if (event.stamp_s > released_until_s_) released_until_s_ = event.stamp_s;
-    process(event);
+    process(event, out);
   }
   if (stamp_s > released_until_s_ && pending_empty() && std::isfinite(stamp_s)) released_until_s_ = stamp_s;
 }
 
-void DwellAssembler::process(const Event& event) {
+void DwellAssembler::process(const Event& event, CompletedRows* out) {
   if (const auto* command = std::get_if<GimbalEvent>(&event.payload)) {
     if (observe_command_) observe_command_(*command);
-    process_command(*command);
+    process_command(*command, out);
   } else if (const auto* reading = std::get_if<ChannelSample>(&event.payload)) {
     process_channel(*reading);
   } else {
@@ -143,7 +153,7 @@ void DwellAssembler::process(const Event& event) {
   }
 }
 
-void DwellAssembler::process_command(const GimbalEvent& command) {
+void DwellAssembler::process_command(const GimbalEvent& command, CompletedRows* out) {
   if (!std::isfinite(table_.time_origin_s)) table_.time_origin_s = command.stamp_s;
   if (done_) {
     ++counters_.commands_out_of_order;
@@ -152,7 +162,7 @@ void DwellAssembler::process_command(const GimbalEvent& command) {
   }
   switch (command.state) {
     case GimbalState::Moving:
-      if (in_dwell_) close_dwell(command.stamp_s);
+      if (in_dwell_) close_dwell(command.stamp_s, out);
       have_moving_ = true;
       last_moving_ = command;
       break;
@@ -160,7 +170,7 @@ void DwellAssembler::process_command(const GimbalEvent& command) {
       if (in_dwell_) {
         ++counters_.commands_out_of_order;
         counters_.last_warning = "gimbal command " + describe(command) + " while already settled: previous dwell closed";
-        close_dwell(command.stamp_s);
+        close_dwell(command.stamp_s, out);
       } else if (!have_moving_ || last_moving_.phase != command.phase || last_moving_.step != command.step) {
         ++counters_.commands_out_of_order;
         counters_.last_warning = "gimbal command " + describe(command) + " without a MOVING to the same position";
@@ -172,7 +182,7 @@ void DwellAssembler::process_command(const GimbalEvent& command) {
       have_moving_ = false;
       break;
     case GimbalState::Done:
-      if (in_dwell_) close_dwell(command.stamp_s);
+      if (in_dwell_) close_dwell(command.stamp_s, out);
       done_ = true;
       break;
     default:
@@ -215,7 +225,7 @@ double DwellAssembler::ChannelAccumulator::value(Aggregate aggregate) const {
   return std::numeric_limits<double>::quiet_NaN();
 }
 
-void DwellAssembler::close_dwell(double end_stamp_s) {
+void DwellAssembler::close_dwell(double end_stamp_s, CompletedRows* out) {
   in_dwell_ = false;
   if (accumulator_.count() == 0) {
     std::ostringstream s;
@@ -237,7 +247,7 @@ void DwellAssembler::close_dwell(double end_stamp_s) {
     row.*spec.value = channel_accumulators_[channel_index(spec.id)].value(spec.aggregate);
   table_.rows.push_back(row);
   accumulator_.reset();
-  if (on_dwell_) on_dwell_(row);
+  out->push_back(row);
 }
 
 bool DwellAssembler::current_dwell(Phase* phase, std::uint32_t* step, std::uint64_t* samples) const {

@@ -187,16 +187,33 @@ TEST(DwellAssembler, SampleLaterThanTheWindowIsDroppedAndCounted) {
   EXPECT_DOUBLE_EQ(assembler.table().rows[0].mean(0), 2.0);
 }
 
-TEST(DwellAssembler, CallbackFiresOncePerDwellAndResetStartsOver) {
+TEST(DwellAssembler, ReturnsEachDwellOnceAndResetStartsOver) {
   core::SimulationOptions sim;
   sim.protocol.steps_per_phase = 3;
   sim.protocol.dwell_s = 0.5;
   const core::Recording rec = core::simulate_recording(sim);
   core::DwellAssembler assembler;
-  int calls = 0;
-  assembler.set_dwell_callback([&](const core::DwellRecord&) { ++calls; });
-  core::feed_in_stamp_order(rec, &assembler);
-  EXPECT_EQ(calls, 9);
+  // Fed by hand in stamp order (commands first at equal stamps), every call's returned rows.
+  std::vector<core::DwellRecord> returned;
+  const auto keep = [&](const core::CompletedRows& rows) {
+    returned.insert(returned.end(), rows.begin(), rows.end());
+  };
+  std::size_t c = 0;
+  for (const core::ImuSample& s : rec.samples) {
+    while (c < rec.commands.size() && rec.commands[c].stamp_s <= s.stamp_s) {
+      keep(assembler.add_command(rec.commands[c++]));
+    }
+    keep(assembler.add_sample(s));
+  }
+  while (c < rec.commands.size()) keep(assembler.add_command(rec.commands[c++]));
+  keep(assembler.flush());
+  ASSERT_EQ(returned.size(), 9u);
+  ASSERT_EQ(assembler.table().rows.size(), 9u);
+  for (std::size_t i = 0; i < returned.size(); ++i) {
+    EXPECT_EQ(returned[i].t_start_s, assembler.table().rows[i].t_start_s) << i;
+    EXPECT_EQ(returned[i].n, assembler.table().rows[i].n) << i;
+  }
+  EXPECT_TRUE(assembler.flush().empty());  // nothing returned twice
   assembler.reset();
   EXPECT_TRUE(assembler.table().rows.empty());
   EXPECT_FALSE(assembler.done());

@@ -219,9 +219,8 @@ class CalibrationRun {
   enum class Pending { None, Resume, Abort };
 
   void connect_assembler();
-  // Rows the assembler completed during the last call, processed after it returned (a fault
-  // may restart the assembler, which must not happen inside its own callback).
-  void process_completed_rows();
+  // The rows an assembler call completed (returned by it, so a fault may restart it).
+  void accept_rows(const CompletedRows& rows);
   void accept_row(const DwellRecord& row);
   void raise_fault(const std::string& what, Phase phase, std::uint32_t step, int approach,
                    double dwell_start_s);
@@ -245,7 +244,6 @@ class CalibrationRun {
   DwellAssembler assembler_;
   MoveSampleRecorder moves_;
   ClockCheck clock_check_;
-  std::vector<DwellRecord> completed_rows_;
   RunActions actions_;
   PositionTable table_;
 

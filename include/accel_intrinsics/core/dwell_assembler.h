@@ -76,14 +76,15 @@ struct AssemblerCounters {
   std::string last_warning;                 // the latest out-of-protocol event, for logs
 };
 
+// The dwells a call completed, in stamp order (each also appended to table()). Returned, not
+// called back: the caller acts on them after the assembler has returned (a fault may then
+// reset the assembler).
+using CompletedRows = std::vector<DwellRecord>;
+
 class DwellAssembler {
  public:
-  using DwellCallback = std::function<void(const DwellRecord&)>;
-
   explicit DwellAssembler(const AssemblerOptions& options = {});
 
-  // Called for every completed dwell, in stamp order.
-  void set_dwell_callback(DwellCallback callback) { on_dwell_ = std::move(callback); }
   // Called for every command and every finite, in-order sample as it is released in stamp order
   // (before it is assigned to a dwell): what a raw-stream analysis needs (MoveSampleRecorder).
   using CommandObserver = std::function<void(const GimbalEvent&)>;
@@ -93,15 +94,16 @@ class DwellAssembler {
     observe_sample_ = std::move(on_sample);
   }
 
-  void add_command(const GimbalEvent& event);
-  void add_sample(const ImuSample& sample);
+  // Each input returns the dwells it completed (most calls: none).
+  CompletedRows add_command(const GimbalEvent& event);
+  CompletedRows add_sample(const ImuSample& sample);
   // Channel readings join dwells by stamp like samples; a dwell's value of the channel is their
   // aggregate (ChannelSpec::aggregate; NaN when it got none).
-  void add_channel_sample(const ChannelSample& reading);
+  CompletedRows add_channel_sample(const ChannelSample& reading);
   // Processes everything buffered (end of a bag, or DONE plus the reorder window online).
-  void flush();
+  CompletedRows flush();
   // Processes buffered events with stamps up to `stamp_s` (a node's timer).
-  void flush_until(double stamp_s);
+  CompletedRows flush_until(double stamp_s);
   void reset();
 
   const PositionTable& table() const { return table_; }
@@ -129,16 +131,16 @@ class DwellAssembler {
     bool operator()(const Event& a, const Event& b) const;
   };
 
-  void push(Event event);
-  void release_until(double stamp_s);
-  void process(const Event& event);
-  void process_command(const GimbalEvent& command);
+  // Completed dwells are appended to `out`.
+  void push(Event event, CompletedRows* out);
+  void release_until(double stamp_s, CompletedRows* out);
+  void process(const Event& event, CompletedRows* out);
+  void process_command(const GimbalEvent& command, CompletedRows* out);
   void process_sample(const ImuSample& sample);
   void process_channel(const ChannelSample& reading);
-  void close_dwell(double end_stamp_s);
+  void close_dwell(double end_stamp_s, CompletedRows* out);
 
   AssemblerOptions options_;
-  DwellCallback on_dwell_;
   CommandObserver observe_command_;
   SampleObserver observe_sample_;
   // The reorder buffer. Events that arrive in order (the common case: every message of a
