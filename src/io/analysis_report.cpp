@@ -4,6 +4,7 @@
 #include <cmath>
 #include <iomanip>
 #include <ostream>
+#include <sstream>
 #include <stdexcept>
 
 #include "accel_intrinsics/core/effects.h"
@@ -293,6 +294,27 @@ void write_analysis_report(std::ostream& out, const AnalysisResult& r) {
   for (const std::string& n : r.unobservable) out << "  unobservable: " << n << "\n";
   out.flags(flags);
   out.precision(precision);
+}
+
+std::string analysis_summary_line(const core::CalibrationReport& report) {
+  if (!report.analysis) throw std::invalid_argument("analysis_summary_line: no analysis");
+  const core::AnalysisResult& analysis = *report.analysis;
+  std::ostringstream s;
+  s.precision(4);
+  s << "reduced chi2 " << analysis.before.summary.reduced_chi2 << " ("
+    << analysis.before_fit.model_label() << ") -> " << analysis.after.summary.reduced_chi2 << " ("
+    << analysis.after_fit.model_label() << "); named:";
+  if (analysis.effects.empty()) s << " none";
+  for (const core::NamedEffect& e : analysis.effects) {
+    s << " " << e.effect.label() << " = " << e.effect.value << " +- " << e.std << " (p "
+      << e.p_value << ")";
+  }
+  s << "; certificate: " << report.certificate.model_label();
+  if (report.timing_lag) {
+    s << "; " << (report.timing_lag->ok ? "" : "timing lag: no estimate: ")
+      << report.timing_lag->message;
+  }
+  return s.str();
 }
 
 }  // namespace io

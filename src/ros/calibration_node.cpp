@@ -33,23 +33,8 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
       run_(options.run),
       files_(options.output_dir, options.file_prefix) {
   if (options_.resume) {
-    try {
-      const std::optional<io::CheckpointFiles::Restored> restored = files_.load();
-      if (!restored) {
-        ROS_INFO("calibration: resume: no checkpoint in %s, starting fresh",
-                 options_.output_dir.c_str());
-      } else {
-        if (restored->dropped_torn_line) {
-          ROS_WARN("calibration: resume: dropped an incomplete last line of %s",
-                   files_.table_path().c_str());
-        }
-        carry_out(run_.restore(restored->table, restored->state), nullptr);
-      }
-    } catch (const std::exception& e) {
-      // A checkpoint that cannot be read is not silently replaced by a fresh run.
-      throw ParamError("parameter " + param_name(pnh_, "resume") +
-                       ": cannot read the checkpoint in " + options_.output_dir + ": " + e.what());
-    }
+    const std::string param = param_name(pnh_, "resume");
+    carry_out(restore_from_checkpoint(&files_, options_.output_dir, &run_, param), nullptr);
   }
   result_pub_ = nh_.advertise<IntrinsicResult>(names::kResultTopic, 1, true);
   status_pub_ =
@@ -228,11 +213,7 @@ void CalibrationNode::call_controller(const core::RunAction& action) {
   const core::ControllerRequest& r = action.request;
   if (action.kind == core::RunAction::Kind::ResumeAt) {
     ResumeAt srv;
-    srv.request.phase = static_cast<std::uint8_t>(core::index(r.phase));
-    srv.request.step = r.step;
-    srv.request.approach = static_cast<std::int8_t>(r.approach);
-    srv.request.after = r.after;
-    srv.request.reason = r.reason;
+    srv.request = to_resume_request(r);
     ros::ServiceClient client = nh_.serviceClient<ResumeAt>(controller + "/resume");
     const bool reached = client.waitForExistence(ros::Duration(0.5)) && client.call(srv);
     std::lock_guard<std::recursive_mutex> lock(mutex_);
@@ -255,21 +236,10 @@ void CalibrationNode::call_controller(const core::RunAction& action) {
 void CalibrationNode::carry_out(const core::RunActions& actions,
                                 std::vector<core::RunAction>* requests) {
   using Kind = core::RunAction::Kind;
-  using Level = core::RunAction::Level;
   for (const core::RunAction& a : actions) {
     try {
       switch (a.kind) {
-        case Kind::Log:
-          if (a.repeating) {
-            ROS_WARN_THROTTLE(5.0, "calibration: %s", a.text.c_str());
-          } else if (a.level == Level::Error) {
-            ROS_ERROR("calibration: %s", a.text.c_str());
-          } else if (a.level == Level::Warn) {
-            ROS_WARN("calibration: %s", a.text.c_str());
-          } else {
-            ROS_INFO("calibration: %s", a.text.c_str());
-          }
-          break;
+        case Kind::Log: log_run_action(a); break;
         case Kind::DwellAccepted:
           files_.append_row(a.row);
           ROS_INFO("calibration: %s", a.text.c_str());
@@ -362,20 +332,10 @@ void CalibrationNode::publish_certificate(const core::CalibrationReport& report,
     context.samples = counters;
     context.certificate = options_.certificate;
     context.gravity_source = options_.gravity_source;
-    io::write_result_yaml(files_.result_path(), report, context);
-    ROS_INFO("calibration: wrote %s", files_.result_path().c_str());
-    write_exports(report);
-    if (!options_.archive.empty()) archive_result();
+    if (!write_result_files(files_, options_.exports, report, context)) return;
+    archive_result_file(options_.archive, options_.archive_device, options_.archive_rig,
+                        files_.result_path(), files_.table_path());
   }
-}
-
-void CalibrationNode::archive_result() const {
-  archive_result_file(options_.archive, options_.archive_device, options_.archive_rig,
-                      files_.result_path(), files_.table_path());
-}
-
-void CalibrationNode::write_exports(const core::CalibrationReport& report) {
-  accel_intrinsics::write_exports(files_, options_.exports, report);
 }
 
 std::string CalibrationNode::publish_analysis(const core::CalibrationReport& report,
@@ -390,24 +350,9 @@ std::string CalibrationNode::publish_analysis(const core::CalibrationReport& rep
   msg.data = io::analysis_json_text(report, context);
   analysis_pub_.publish(msg);
   if (files_.enabled()) io::write_file_atomically(files_.analysis_path(), msg.data + "\n");
-  const core::AnalysisResult& analysis = *report.analysis;
-  std::ostringstream s;
-  s.precision(4);
-  s << "reduced chi2 " << analysis.before.summary.reduced_chi2 << " ("
-    << analysis.before_fit.model_label() << ") -> " << analysis.after.summary.reduced_chi2 << " ("
-    << analysis.after_fit.model_label() << "); named:";
-  if (analysis.effects.empty()) s << " none";
-  for (const core::NamedEffect& e : analysis.effects) {
-    s << " " << e.effect.label() << " = " << e.effect.value << " +- " << e.std << " (p "
-      << e.p_value << ")";
-  }
-  s << "; certificate: " << report.certificate.model_label();
-  if (report.timing_lag) {
-    s << "; " << (report.timing_lag->ok ? "" : "timing lag: no estimate: ")
-      << report.timing_lag->message;
-  }
-  ROS_INFO("calibration: analysis: %s", s.str().c_str());
-  return s.str();
+  const std::string summary = io::analysis_summary_line(report);
+  ROS_INFO("calibration: analysis: %s", summary.c_str());
+  return summary;
 }
 
 void CalibrationNode::fit_loop() {
@@ -451,7 +396,7 @@ bool CalibrationNode::on_get_intrinsics(GetIntrinsics::Request&, GetIntrinsics::
   if (!result_.quality_pass) {
     // The result is there to look at, but it is not a calibration.
     res.success = false;
-    res.message = "the result fails the quality gate: " + core::Quality{false, result_.quality_reasons}.summary();
+    res.message = quality_failure_message(result_);
     return true;
   }
   std::ostringstream s;
@@ -538,69 +483,13 @@ void CalibrationNode::diagnose_imu(diagnostic_updater::DiagnosticStatusWrapper& 
           ? static_cast<double>(rate_count_ - 1) / (rate_last_stamp_s_ - rate_first_stamp_s_)
           : 0.0;
   rate_count_ = 0;
-  const core::RunStatus st = run_.status(ros::Time::now().toSec());
-  const core::AssemblerCounters& c = st.counters;
-  if (st.imu_silent) {
-    status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no IMU samples during a dwell");
-  } else if (c.dropped_non_finite + c.dropped_backwards + c.dropped_late > 0) {
-    status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "bad IMU samples dropped");
-  } else {
-    status.summary(diagnostic_msgs::DiagnosticStatus::OK, "IMU stream ok");
-  }
-  status.add("rate_hz", rate_hz);
-  status.add("received", imu_received_);
-  status.add("samples_used", c.samples_used);
-  status.add("dropped_outside_dwell", c.dropped_outside_dwell);
-  status.add("dropped_settle_discard", c.dropped_settle_discard);
-  status.add("dropped_non_finite", c.dropped_non_finite);
-  status.add("dropped_backwards", c.dropped_backwards);
-  status.add("duplicates", c.duplicates);
-  status.add("dropped_late", c.dropped_late);
-  status.add("newest_stamp_s",
-             std::isfinite(st.newest_sample_stamp_s) ? st.newest_sample_stamp_s : 0.0);
+  accel_intrinsics::diagnose_imu(run_.status(ros::Time::now().toSec()), rate_hz, imu_received_,
+                                 &status);
 }
 
 void CalibrationNode::diagnose_run(diagnostic_updater::DiagnosticStatusWrapper& status) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
-  const core::RunStatus st = run_.status(ros::Time::now().toSec());
-  switch (st.state) {
-    case core::RunState::Aborted:
-      status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "run aborted: " + st.fault);
-      break;
-    case core::RunState::FitFailed:
-      status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "fit failed: " + st.fit_error);
-      break;
-    case core::RunState::WaitingForResume:
-      status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
-                     "waiting for the gimbal controller to resume" +
-                         (st.last_fault.empty() ? std::string() : " (" + st.last_fault + ")"));
-      break;
-    case core::RunState::Done:
-      if (result_.quality_pass) {
-        status.summary(diagnostic_msgs::DiagnosticStatus::OK,
-                       "result available (" + result_.model + ")");
-      } else {
-        status.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
-                       "the result fails the quality gate: " +
-                           core::Quality{false, result_.quality_reasons}.summary());
-      }
-      break;
-    default: status.summary(diagnostic_msgs::DiagnosticStatus::OK, "collecting");
-  }
-  status.add("state", core::run_state_name(st.state));
-  status.add("current_dwell", st.in_dwell
-                                  ? std::string("phase ") + core::phase_name(st.dwell_phase) +
-                                        " step " + std::to_string(st.dwell_step)
-                                  : std::string());
-  status.add("current_dwell_samples", st.in_dwell ? st.dwell_samples : 0);
-  for (core::Phase p : core::kPhases) {
-    status.add(std::string("dwells_") + core::phase_name(p), st.dwells_per_phase[core::index(p)]);
-  }
-  status.add("steps", st.steps);
-  status.add("retries", st.retries);
-  status.add("dwells_discarded", st.dwells_discarded);
-  status.add("last_fault", st.last_fault);
-  status.add("restored", st.restored);
+  accel_intrinsics::diagnose_run(run_.status(ros::Time::now().toSec()), result_, &status);
 }
 
 }  // namespace accel_intrinsics

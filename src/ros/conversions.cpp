@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "accel_intrinsics/core/quality.h"
+
 namespace accel_intrinsics {
 
 namespace {
@@ -192,6 +194,83 @@ diagnostic_msgs::DiagnosticStatus to_status_msg(const core::RunStatus& st,
   msg.values.push_back(kv("model", model));
   msg.values.push_back(kv("stamp", std::to_string(stamp_s)));
   return msg;
+}
+
+void diagnose_imu(const core::RunStatus& st, double rate_hz, std::uint64_t received,
+                  diagnostic_updater::DiagnosticStatusWrapper* out) {
+  const core::AssemblerCounters& c = st.counters;
+  if (st.imu_silent) {
+    out->summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no IMU samples during a dwell");
+  } else if (c.dropped_non_finite + c.dropped_backwards + c.dropped_late > 0) {
+    out->summary(diagnostic_msgs::DiagnosticStatus::WARN, "bad IMU samples dropped");
+  } else {
+    out->summary(diagnostic_msgs::DiagnosticStatus::OK, "IMU stream ok");
+  }
+  out->add("rate_hz", rate_hz);
+  out->add("received", received);
+  out->add("samples_used", c.samples_used);
+  out->add("dropped_outside_dwell", c.dropped_outside_dwell);
+  out->add("dropped_settle_discard", c.dropped_settle_discard);
+  out->add("dropped_non_finite", c.dropped_non_finite);
+  out->add("dropped_backwards", c.dropped_backwards);
+  out->add("duplicates", c.duplicates);
+  out->add("dropped_late", c.dropped_late);
+  out->add("newest_stamp_s",
+           std::isfinite(st.newest_sample_stamp_s) ? st.newest_sample_stamp_s : 0.0);
+}
+
+void diagnose_run(const core::RunStatus& st, const IntrinsicResult& result,
+                  diagnostic_updater::DiagnosticStatusWrapper* out) {
+  switch (st.state) {
+    case core::RunState::Aborted:
+      out->summary(diagnostic_msgs::DiagnosticStatus::ERROR, "run aborted: " + st.fault);
+      break;
+    case core::RunState::FitFailed:
+      out->summary(diagnostic_msgs::DiagnosticStatus::ERROR, "fit failed: " + st.fit_error);
+      break;
+    case core::RunState::WaitingForResume:
+      out->summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                   "waiting for the gimbal controller to resume" +
+                       (st.last_fault.empty() ? std::string() : " (" + st.last_fault + ")"));
+      break;
+    case core::RunState::Done:
+      if (result.quality_pass) {
+        out->summary(diagnostic_msgs::DiagnosticStatus::OK,
+                     "result available (" + result.model + ")");
+      } else {
+        out->summary(diagnostic_msgs::DiagnosticStatus::ERROR, quality_failure_message(result));
+      }
+      break;
+    default: out->summary(diagnostic_msgs::DiagnosticStatus::OK, "collecting");
+  }
+  out->add("state", core::run_state_name(st.state));
+  out->add("current_dwell", st.in_dwell ? std::string("phase ") + core::phase_name(st.dwell_phase) +
+                                              " step " + std::to_string(st.dwell_step)
+                                        : std::string());
+  out->add("current_dwell_samples", st.in_dwell ? st.dwell_samples : 0);
+  for (core::Phase p : core::kPhases) {
+    out->add(std::string("dwells_") + core::phase_name(p), st.dwells_per_phase[core::index(p)]);
+  }
+  out->add("steps", st.steps);
+  out->add("retries", st.retries);
+  out->add("dwells_discarded", st.dwells_discarded);
+  out->add("last_fault", st.last_fault);
+  out->add("restored", st.restored);
+}
+
+std::string quality_failure_message(const IntrinsicResult& result) {
+  return "the result fails the quality gate: " +
+         core::Quality{false, result.quality_reasons}.summary();
+}
+
+ResumeAt::Request to_resume_request(const core::ControllerRequest& r) {
+  ResumeAt::Request out;
+  out.phase = static_cast<std::uint8_t>(core::index(r.phase));
+  out.step = r.step;
+  out.approach = static_cast<std::int8_t>(r.approach);
+  out.after = r.after;
+  out.reason = r.reason;
+  return out;
 }
 
 }  // namespace accel_intrinsics

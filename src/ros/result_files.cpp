@@ -2,11 +2,47 @@
 
 #include <ros/console.h>
 
+#include <optional>
 #include <thread>
 
+#include "accel_intrinsics/ros/params.h"
 #include "accel_intrinsics/ros/scripts.h"
 
 namespace accel_intrinsics {
+
+core::RunActions restore_from_checkpoint(io::CheckpointFiles* files,
+                                         const std::string& output_dir, core::CalibrationRun* run,
+                                         const std::string& resume_param) {
+  try {
+    const std::optional<io::CheckpointFiles::Restored> restored = files->load();
+    if (!restored) {
+      ROS_INFO("calibration: resume: no checkpoint in %s, starting fresh",
+               output_dir.c_str());
+      return {};
+    }
+    if (restored->dropped_torn_line) {
+      ROS_WARN("calibration: resume: dropped an incomplete last line of %s",
+               files->table_path().c_str());
+    }
+    return run->restore(restored->table, restored->state);
+  } catch (const std::exception& e) {
+    throw ParamError("parameter " + resume_param + ": cannot read the checkpoint in " +
+                     output_dir + ": " + e.what());
+  }
+}
+
+void log_run_action(const core::RunAction& a) {
+  using Level = core::RunAction::Level;
+  if (a.repeating) {
+    ROS_WARN_THROTTLE(5.0, "calibration: %s", a.text.c_str());
+  } else if (a.level == Level::Error) {
+    ROS_ERROR("calibration: %s", a.text.c_str());
+  } else if (a.level == Level::Warn) {
+    ROS_WARN("calibration: %s", a.text.c_str());
+  } else {
+    ROS_INFO("calibration: %s", a.text.c_str());
+  }
+}
 
 void write_exports(const io::CheckpointFiles& files, const std::vector<io::ExportFormat>& formats,
                    const core::CalibrationReport& report) {
@@ -29,18 +65,19 @@ void write_exports(const io::CheckpointFiles& files, const std::vector<io::Expor
   }
 }
 
-void write_result_files(const io::CheckpointFiles& files,
+bool write_result_files(const io::CheckpointFiles& files,
                         const std::vector<io::ExportFormat>& formats,
                         const core::CalibrationReport& report, const io::ResultContext& context) {
-  if (!files.enabled()) return;
+  if (!files.enabled()) return false;
   try {
     io::write_result_yaml(files.result_path(), report, context);
     ROS_INFO("calibration: wrote %s", files.result_path().c_str());
   } catch (const io::IoError& e) {
     ROS_ERROR("calibration: %s", e.what());
-    return;
+    return false;
   }
   write_exports(files, formats, report);
+  return true;
 }
 
 void archive_result_file(const std::string& archive, const std::string& device,

@@ -31,5 +31,10 @@ std::string analysis_json_text(const core::CalibrationReport& report, const Resu
 // named effects, ambiguity, notes. For offline_fit's text output and the calibration node's log.
 void write_analysis_report(std::ostream& out, const core::AnalysisResult& analysis);
 
+// One line for a log and the calibration node's analyze service: the reduced chi-square before ->
+// after, the named effects with std and p, the certificate's model and the timing lag. Throws
+// std::invalid_argument when the report has no analysis.
+std::string analysis_summary_line(const core::CalibrationReport& report);
+
 }  // namespace io
 }  // namespace accel_intrinsics

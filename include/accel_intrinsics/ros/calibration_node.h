@@ -117,11 +117,6 @@ class CalibrationNode {
   // `counters`: the run's sample counters when it was handed to the fit.
   void publish_certificate(const core::CalibrationReport& report,
                            const core::AssemblerCounters& counters, const ros::Time& stamp);
-  // The files of options_.exports in output_dir; a failure is logged, never fatal.
-  void write_exports(const core::CalibrationReport& report);
-  // scripts/archive add of the result file just written, on a detached thread (the script takes
-  // a second); a failure is a warning, the result file stays.
-  void archive_result() const;
   // Returns the one-line summary (logged, and the analyze service's answer).
   std::string publish_analysis(const core::CalibrationReport& report, const ros::Time& stamp);
   void publish_status(const ros::Time& now);

@@ -2,12 +2,14 @@
 #pragma once
 
 #include <diagnostic_msgs/DiagnosticStatus.h>
+#include <diagnostic_updater/DiagnosticStatusWrapper.h>
 #include <sensor_msgs/Imu.h>
 
 #include <string>
 
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/IntrinsicResult.h"
+#include "accel_intrinsics/ResumeAt.h"
 #include "accel_intrinsics/core/calibration_run.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/fit.h"
@@ -36,5 +38,19 @@ diagnostic_msgs::DiagnosticStatus to_status_msg(const core::RunStatus& status,
                                                 const std::string& message,
                                                 const std::string& model, double stamp_s,
                                                 const std::string& name);
+
+// The calibration node's diagnostics (diagnostic_updater tasks "imu" and "run"): summary level
+// and message, and the key/values. `rate_hz`: the IMU's rate in its own stamps; `received`: IMU
+// messages so far; `result`: the latest certificate (its quality gate).
+void diagnose_imu(const core::RunStatus& status, double rate_hz, std::uint64_t received,
+                  diagnostic_updater::DiagnosticStatusWrapper* out);
+void diagnose_run(const core::RunStatus& status, const IntrinsicResult& result,
+                  diagnostic_updater::DiagnosticStatusWrapper* out);
+
+// "the result fails the quality gate: <reasons>" of a certificate that failed it.
+std::string quality_failure_message(const IntrinsicResult& result);
+
+// The gimbal_controller/resume request of the run's ResumeAt.
+ResumeAt::Request to_resume_request(const core::ControllerRequest& request);
 
 }  // namespace accel_intrinsics

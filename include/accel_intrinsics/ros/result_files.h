@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "accel_intrinsics/core/calibrate.h"
+#include "accel_intrinsics/core/calibration_run.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/checkpoint.h"
 #include "accel_intrinsics/io/exporters.h"
@@ -15,11 +16,23 @@
 
 namespace accel_intrinsics {
 
+// ~resume: reloads the checkpoint of `files` (in `output_dir`; later rows are appended to it)
+// into `run` and returns the run's actions (none when
+// there is no checkpoint: a fresh run). A checkpoint that cannot be read is not silently replaced
+// by a fresh run: throws ParamError naming `resume_param`.
+core::RunActions restore_from_checkpoint(io::CheckpointFiles* files,
+                                         const std::string& output_dir, core::CalibrationRun* run,
+                                         const std::string& resume_param);
+
+// The run's Log action as a ROS log line at its level ("repeating" ones throttled).
+void log_run_action(const core::RunAction& action);
+
 void write_exports(const io::CheckpointFiles& files, const std::vector<io::ExportFormat>& formats,
                    const core::CalibrationReport& report);
 
 // intrinsics.yaml, then the exports; nothing when the files are disabled (no output_dir).
-void write_result_files(const io::CheckpointFiles& files,
+// Returns whether intrinsics.yaml was written.
+bool write_result_files(const io::CheckpointFiles& files,
                         const std::vector<io::ExportFormat>& formats,
                         const core::CalibrationReport& report, const io::ResultContext& context);
 
