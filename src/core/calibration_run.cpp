@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 #include <utility>
 
 namespace accel_intrinsics {
@@ -47,6 +48,95 @@ const char* run_state_name(RunState state) {
     case RunState::Aborted: return "aborted";
   }
   return "?";
+}
+
+const char* run_event_name(RunEvent event) {
+  switch (event) {
+    case RunEvent::Reset: return "reset";
+    case RunEvent::RestoredAborted: return "restored aborted";
+    case RunEvent::Moving: return "moving";
+    case RunEvent::Settled: return "settled";
+    case RunEvent::DoneReceived: return "done received";
+    case RunEvent::DoneDiscarded: return "done discarded";
+    case RunEvent::FitStarted: return "fit started";
+    case RunEvent::ClockMismatch: return "clock mismatch";
+    case RunEvent::FitPublished: return "fit published";
+    case RunEvent::FitFailed: return "fit failed";
+    case RunEvent::FitWithheld: return "fit withheld";
+    case RunEvent::FaultRetried: return "fault retried";
+    case RunEvent::FaultAborted: return "fault aborted";
+    case RunEvent::ControllerFault: return "controller fault";
+    case RunEvent::ResumeRequested: return "resume requested";
+    case RunEvent::ResumeConfirmed: return "resume confirmed";
+    case RunEvent::ResumeRefused: return "resume refused";
+  }
+  return "?";
+}
+
+const std::vector<RunTransition>& run_transition_table() {
+  using S = RunState;
+  using E = RunEvent;
+  static const std::vector<RunTransition> table = [] {
+    std::vector<RunTransition> t;
+    const auto rows = [&t](std::initializer_list<S> from, E event, S to, bool collecting = false) {
+      for (S f : from) t.push_back({f, event, to, collecting});
+    };
+    const std::initializer_list<S> all = {S::Idle,    S::Running, S::Dwelling, S::WaitingForResume,
+                                          S::Fitting, S::Done,    S::FitFailed, S::Aborted};
+    const std::initializer_list<S> collecting = {S::Idle, S::Running, S::Dwelling};
+    rows(all, E::Reset, S::Idle);
+    rows({S::Idle}, E::RestoredAborted, S::Aborted);
+    // Commands move a collecting run; in the other states they only feed the assembler.
+    rows(collecting, E::Moving, S::Running);
+    rows(collecting, E::Settled, S::Dwelling);
+    rows(collecting, E::DoneReceived, S::Fitting);
+    // Aborted by the controller meanwhile: no fit, the run is where its commands say.
+    rows({S::Fitting}, E::DoneDiscarded, S::Running, true);
+    // Idle: a restored complete run; FitFailed: fitted again after a later DONE.
+    rows({S::Idle, S::Fitting, S::FitFailed}, E::FitStarted, S::Fitting);
+    rows({S::Idle, S::Fitting, S::FitFailed}, E::ClockMismatch, S::FitFailed);
+    rows({S::Fitting}, E::FitPublished, S::Done);
+    // Done: a second fit of the run (after a retried position) failed.
+    rows({S::Fitting, S::Done}, E::FitFailed, S::FitFailed);
+    rows({S::Fitting}, E::FitWithheld, S::Running, true);
+    // A result stays through a retry (the rewound positions are fitted again); an abort ends it.
+    rows({S::Idle, S::Running, S::Dwelling, S::Fitting, S::FitFailed}, E::FaultRetried,
+         S::WaitingForResume);
+    rows({S::Idle, S::Running, S::Dwelling, S::WaitingForResume, S::Fitting, S::Done, S::FitFailed},
+         E::FaultAborted, S::Aborted);
+    rows({S::Running, S::Dwelling, S::Fitting, S::FitFailed}, E::ControllerFault,
+         S::WaitingForResume);
+    rows({S::Idle, S::Running, S::Dwelling, S::Fitting, S::FitFailed}, E::ResumeRequested,
+         S::WaitingForResume);
+    rows({S::WaitingForResume}, E::ResumeConfirmed, S::Running, true);
+    rows({S::Idle, S::Running, S::Dwelling, S::WaitingForResume, S::Fitting, S::FitFailed},
+         E::ResumeRefused, S::Aborted);
+    return t;
+  }();
+  return table;
+}
+
+const RunTransition* run_transition(RunState from, RunEvent event) {
+  for (const RunTransition& t : run_transition_table()) {
+    if (t.from == from && t.event == event) return &t;
+  }
+  return nullptr;
+}
+
+void CalibrationRun::apply(RunEvent event) {
+  if (event == RunEvent::Reset) events_.clear();
+  events_.push_back(event);
+  const RunTransition* t = run_transition(state_, event);
+  if (t == nullptr) return;  // ignored in this state (run_transition_table())
+  if (!t->collecting) {
+    state_ = t->to;
+  } else if (done_pending_ || fitting_) {
+    state_ = RunState::Fitting;  // a DONE waits for its window, or a fit still runs
+  } else if (commands_in_run_ == 0) {
+    state_ = RunState::Idle;
+  } else {
+    state_ = live_in_dwell_ ? RunState::Dwelling : RunState::Running;
+  }
 }
 
 CalibrationRun::CalibrationRun(const RunOptions& options)
@@ -95,6 +185,7 @@ void CalibrationRun::emit_fit() {
       clock.offset_s -= options_.imu_time_offset_s;
       fit_error_ = clock.message("imu_time_offset_s");
       log(RunAction::Level::Error, "no fit: " + fit_error_);
+      apply(RunEvent::ClockMismatch);
       return;
     }
   }
@@ -108,6 +199,7 @@ void CalibrationRun::emit_fit() {
   a.counters = counters();
   a.fit_ticket = ++fit_ticket_;
   fitting_ = true;
+  apply(RunEvent::FitStarted);
   actions_.push_back(std::move(a));
 }
 
@@ -138,7 +230,7 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
       begin_resume("calibration node restarted from its checkpoint");
     }
   }
-  const bool previous_run_over = done_pending_ || assembler_.done() || have_result_ || fitting_ ||
+  const bool previous_run_over = done_pending_ || assembler_.done() || has_result() || fitting_ ||
                                  !fit_error_.empty() || !fault_.empty();
   if (run_start && previous_run_over && !rewind_pending()) {
     if (done_pending_ && fault_.empty()) {
@@ -183,6 +275,7 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
         s.precision(3);
         s << "DONE at " << event.stamp_s << " s ignored (waiting for the rewound protocol)";
         log(RunAction::Level::Info, s.str());
+        apply(RunEvent::Moving);  // not in a dwell any more
         return take_actions();
       }
     }
@@ -192,6 +285,9 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
     done_pending_ = true;
     done_stamp_s_ = event.stamp_s;
     log(RunAction::Level::Info, "DONE received, fitting after the reorder window");
+    apply(RunEvent::DoneReceived);
+  } else {
+    apply(event.state == GimbalState::Settled ? RunEvent::Settled : RunEvent::Moving);
   }
   warn_on_new_drops();
   return take_actions();
@@ -225,7 +321,7 @@ RunActions CalibrationRun::on_controller_state(const std::string& state,
   // (respawned after a crash). The run it drove is still open here: continue it (at tick()).
   const bool was_running = controller_state_ == "MOVING" || controller_state_ == "SETTLED" ||
                            controller_state_ == "REMOUNT";
-  if (state == "IDLE" && was_running && !done_pending_ && !assembler_.done() && !have_result_ &&
+  if (state == "IDLE" && was_running && !done_pending_ && !assembler_.done() && !has_result() &&
       fault_.empty() && controller_abort_.empty()) {
     controller_restarted_ = true;
     log(RunAction::Level::Warn, "the gimbal controller restarted in the middle of the run");
@@ -237,7 +333,7 @@ RunActions CalibrationRun::on_controller_state(const std::string& state,
     const std::string reason = colon == std::string::npos ? message : message.substr(colon + 2);
     const bool ours = !fault_.empty() || pending_ == Pending::Abort;  // we asked for it
     if (reason != controller_abort_ && !ours && options_.retry_on_fault && have_last_event_ &&
-        !controller_fault_pending_ && !have_result_ && !rewind_pending() && !fitting_) {
+        !controller_fault_pending_ && !has_result() && !rewind_pending() && !fitting_) {
       // A fault of the gimbal itself at the position of the latest command: measure it again
       // (at tick(), after the reorder window, so that the dwells before it are complete).
       controller_fault_pending_ = true;
@@ -247,6 +343,7 @@ RunActions CalibrationRun::on_controller_state(const std::string& state,
       controller_fault_.in_dwell = last_event_.state == GimbalState::Settled;
       controller_fault_.stamp_s = last_event_.stamp_s;
       log(RunAction::Level::Warn, controller_fault_.reason);
+      apply(RunEvent::ControllerFault);
     } else if (reason != controller_abort_ && !controller_fault_pending_) {
       controller_abort_ = reason;
       if (fault_.empty()) log(RunAction::Level::Error, "the gimbal controller aborted: " + reason);
@@ -318,6 +415,7 @@ RunActions CalibrationRun::tick(double now_s) {
     if (aborted()) {
       // An aborted run gives no certificate, whatever it has measured.
       log(RunAction::Level::Error, "the run was aborted; no fit: " + missing_message());
+      apply(RunEvent::DoneDiscarded);
     } else if (!rewind_pending()) {
       emit_fit();
     } else {
@@ -352,6 +450,7 @@ void CalibrationRun::ask_again(Pending kind, const ControllerRequest& request, d
   if (pending_ == Pending::None) {
     pending_ = kind;
     request_ = request;
+    if (kind == Pending::Resume) apply(RunEvent::ResumeRequested);
   }
   request_after_s_ = now_s + options_.request_retry_s;
 }
@@ -371,6 +470,7 @@ RunActions CalibrationRun::on_resume_reply(const ControllerRequest& request, boo
              (request.after ? " (after)" : "") + ": " + message;
     log(RunAction::Level::Error, fault_);
     blackouts_.clear();
+    apply(RunEvent::ResumeRefused);
     emit(RunAction::Kind::CheckpointState);
     return take_actions();
   }
@@ -378,6 +478,7 @@ RunActions CalibrationRun::on_resume_reply(const ControllerRequest& request, boo
     if (!std::isfinite(b.end_s)) b.end_s = moving_stamp_s;
   }
   log(RunAction::Level::Warn, "gimbal controller: " + message);
+  if (!rewind_pending() && !controller_fault_pending_) apply(RunEvent::ResumeConfirmed);
   return take_actions();
 }
 
@@ -403,14 +504,15 @@ RunActions CalibrationRun::on_fit_finished(std::uint64_t fit_ticket, bool publis
   if (fit_ticket != fit_ticket_ || !fitting_) return take_actions();  // reset or superseded
   fitting_ = false;
   if (published) {
-    have_result_ = true;
     fit_error_.clear();
+    apply(RunEvent::FitPublished);
     emit(RunAction::Kind::CheckpointState);
   } else if (!error.empty()) {
-    have_result_ = false;
     fit_error_ = error;
+    apply(RunEvent::FitFailed);
     log(RunAction::Level::Error, "no result after DONE: " + missing_message());
   } else {
+    apply(RunEvent::FitWithheld);
     // A watchdog fired after the fit: no certificate from this one.
     log(RunAction::Level::Warn, "a fault came while the fit ran; its result is not published");
   }
@@ -418,6 +520,11 @@ RunActions CalibrationRun::on_fit_finished(std::uint64_t fit_ticket, bool publis
 }
 
 RunActions CalibrationRun::restore(const PositionTable& table, const CheckpointState& state) {
+  if (state_ != RunState::Idle || commands_received_ > 0 || restored_) {
+    throw std::logic_error(
+        std::string("CalibrationRun::restore: only a fresh run is restored (this one is ") +
+        run_state_name(CalibrationRun::state()) + ")");
+  }
   table_ = table;
   table_.time_origin_s = state.time_origin_s;
   steps_seen_ = state.steps;
@@ -425,6 +532,7 @@ RunActions CalibrationRun::restore(const PositionTable& table, const CheckpointS
   fault_ = state.fault;
   if (!fault_.empty()) {
     log(RunAction::Level::Warn, "resume: the checkpointed run was aborted (" + fault_ + ")");
+    apply(RunEvent::RestoredAborted);
   } else if (state.done) {
     restore_done_ = true;
   } else {
@@ -446,7 +554,6 @@ RunActions CalibrationRun::reset(const std::string& reason) {
   done_pending_ = false;
   fitting_ = false;
   ++fit_ticket_;  // a fit still running belongs to the discarded run
-  have_result_ = false;
   fit_error_.clear();
   warned_ = AssemblerCounters();
   counters_before_ = AssemblerCounters();
@@ -473,6 +580,7 @@ RunActions CalibrationRun::reset(const std::string& reason) {
   live_in_dwell_ = false;
   announced_.clear();
   newest_sample_stamp_s_ = -std::numeric_limits<double>::infinity();
+  apply(RunEvent::Reset);
   emit(RunAction::Kind::ClearCheckpoint);
   log(RunAction::Level::Info,
       "reset (" + reason + "); discarded " + std::to_string(dwells) + " dwells");
@@ -551,6 +659,7 @@ void CalibrationRun::raise_fault(const std::string& what, Phase phase, std::uint
     request_after_s_ = -std::numeric_limits<double>::infinity();
     done_pending_ = false;
     restart_assembler();
+    apply(RunEvent::FaultRetried);
     return;
   }
   std::ostringstream reason;
@@ -567,7 +676,7 @@ void CalibrationRun::raise_fault(const std::string& what, Phase phase, std::uint
   request_ = ControllerRequest();
   request_.reason = fault_;
   request_after_s_ = -std::numeric_limits<double>::infinity();
-  have_result_ = false;
+  apply(RunEvent::FaultAborted);
   emit(RunAction::Kind::CheckpointState);
 }
 
@@ -595,6 +704,7 @@ void CalibrationRun::begin_resume(const std::string& cause) {
   request_after_s_ = -std::numeric_limits<double>::infinity();
   blackouts_.push_back(Blackout());  // everything until the rewound MOVING
   moves_.clear();                    // the lag is estimated on the moves after it
+  apply(RunEvent::ResumeRequested);
   if (!table_.rows.empty()) {
     const DwellRecord& last = table_.rows.back();
     request_.phase = last.phase;
@@ -695,13 +805,8 @@ void CalibrationRun::warn_on_new_drops() {
 // ---------------------------------------------------------------------------------------
 
 RunState CalibrationRun::state() const {
-  if (have_result_) return RunState::Done;
-  if (aborted()) return RunState::Aborted;
-  if (rewind_pending() || controller_fault_pending_) return RunState::WaitingForResume;
-  if (!fit_error_.empty()) return RunState::FitFailed;
-  if (done_pending_ || fitting_) return RunState::Fitting;
-  if (commands_in_run_ == 0) return RunState::Idle;
-  return live_in_dwell_ ? RunState::Dwelling : RunState::Running;
+  if (state_ != RunState::Done && !controller_abort_.empty()) return RunState::Aborted;
+  return state_;
 }
 
 RunStatus CalibrationRun::status(double now_s) const {
@@ -731,7 +836,7 @@ CheckpointState CalibrationRun::checkpoint_state() const {
   c.time_origin_s = table_.time_origin_s;
   c.steps = steps_seen_;
   c.rows = table_.rows.size();
-  c.done = have_result_;
+  c.done = has_result();
   c.fault = fault_;
   return c;
 }

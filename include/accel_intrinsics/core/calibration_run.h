@@ -53,6 +53,44 @@ enum class RunState {
 };
 const char* run_state_name(RunState state);
 
+// What moves the run from one state to another. The run raises exactly these, each in one
+// place, and changes its state only through run_transition().
+enum class RunEvent {
+  Reset,            // reset(): discarded (also when a new run starts)
+  RestoredAborted,  // restore() of a checkpoint whose run was aborted
+  Moving,           // a gimbal MOVING (or a DONE the run ignores: inside a blackout)
+  Settled,          // a gimbal SETTLED: a dwell begins
+  DoneReceived,     // a gimbal DONE the run takes: fit once the reorder window has passed
+  DoneDiscarded,    // the window after DONE passed, but the run is aborted: no fit
+  FitStarted,       // FitNow handed out
+  ClockMismatch,    // no fit: IMU and gimbal stamp on two clocks (the fit error says the offset)
+  FitPublished,     // on_fit_finished: published
+  FitFailed,        // on_fit_finished: the fit failed
+  FitWithheld,      // on_fit_finished: not published, no error (shutdown)
+  FaultRetried,     // a fault (watchdog or the controller's): the position is measured again
+  FaultAborted,     // a fault that ends the run (no retry, or max_retries reached)
+  ControllerFault,  // the controller aborted by itself: retried at tick() after the window
+  ResumeRequested,  // the controller is to rewind (this node or the controller restarted)
+  ResumeConfirmed,  // the controller rewound and no other rewind is pending
+  ResumeRefused,    // the controller refused to rewind: the run is aborted
+};
+const char* run_event_name(RunEvent event);
+
+// One row of the transition table. `collecting`: the target is where the run's inputs put it:
+// Fitting while a DONE waits for its window or a fit runs, else Idle (no command of this run
+// yet), Dwelling (latest command SETTLED) or Running.
+struct RunTransition {
+  RunState from;
+  RunEvent event;
+  RunState to;
+  bool collecting;
+};
+// The whole table. A (state, event) pair that is not in it is ignored: the state stays (for
+// example a late DONE while the run waits for a rewind, or any command after it was aborted).
+const std::vector<RunTransition>& run_transition_table();
+// The row for (from, event), or nullptr when the pair is ignored.
+const RunTransition* run_transition(RunState from, RunEvent event);
+
 struct RunOptions {
   AssemblerOptions assembler;               // settle_discard_s, reorder_window_s
   std::uint32_t steps = 0;                  // expected N before the first command (0: unknown)
@@ -186,13 +224,21 @@ class CalibrationRun {
   RunActions on_fit_finished(std::uint64_t fit_ticket, bool published, const std::string& error);
   // Restarted from a checkpoint: its rows, state. A run that was complete is fitted at the
   // first tick; an aborted one stays aborted; otherwise the controller is asked to continue
-  // after the last row (at its first command, or once it reports DONE).
+  // after the last row (at its first command, or once it reports DONE). Only a fresh run (no
+  // input yet) is restored: otherwise throws std::logic_error.
   RunActions restore(const PositionTable& table, const CheckpointState& state);
   // Discards everything of the current run.
   RunActions reset(const std::string& reason);
 
+  // The run's state; a controller that aborted by itself (controller_abort_) shows as Aborted
+  // over every state but Done, until it runs again (STARTING, MOVING, SETTLED, REMOUNT).
   RunState state() const;
-  bool has_result() const { return have_result_; }
+  // The run's own state (without the controller's abort shown over it).
+  RunState own_state() const { return state_; }
+  // Every event of this run since the last reset (the reset included), in order: for logs and
+  // the transition-table test.
+  const std::vector<RunEvent>& events() const { return events_; }
+  bool has_result() const { return state_ == RunState::Done; }
   // `now_s` judges the IMU watchdog (imu_silent).
   RunStatus status(double now_s) const;
   // What get_intrinsics says while there is no result: the phases that lack dwells, and why.
@@ -236,6 +282,8 @@ class CalibrationRun {
   bool aborted() const { return !fault_.empty() || !controller_abort_.empty(); }
   AssemblerCounters counters() const;
   std::uint32_t steps() const { return steps_seen_ ? steps_seen_ : options_.steps; }
+  // The one place the state changes: run_transition(state_, event).
+  void apply(RunEvent event);
   void log(RunAction::Level level, const std::string& text);
   void log_repeating(const std::string& text);
   RunActions take_actions();
@@ -258,7 +306,8 @@ class CalibrationRun {
   bool unreached_warned_ = false;            // "controller not available" said once
   std::uint64_t commands_in_run_ = 0;
   std::uint64_t run_generation_ = 0;  // bumped by reset()
-  bool have_result_ = false;
+  RunState state_ = RunState::Idle;
+  std::vector<RunEvent> events_;
   std::string fit_error_;
   bool restored_ = false;
   bool resume_pending_ = false;  // restored mid-protocol: rewind at the first command or DONE
