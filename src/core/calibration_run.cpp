@@ -26,8 +26,10 @@ void add_counters(const AssemblerCounters& from, AssemblerCounters* to) {
   to->duplicates += from.duplicates;
   to->dropped_late += from.dropped_late;
   to->commands += from.commands;
-  to->temperatures_used += from.temperatures_used;
-  to->temperatures_dropped += from.temperatures_dropped;
+  for (std::size_t c = 0; c < kChannelCount; ++c) {
+    to->channel_used[c] += from.channel_used[c];
+    to->channel_dropped[c] += from.channel_dropped[c];
+  }
   to->commands_out_of_order += from.commands_out_of_order;
   if (to->last_warning.empty()) to->last_warning = from.last_warning;
 }
@@ -306,10 +308,10 @@ RunActions CalibrationRun::on_sample(const ImuSample& received) {
   return take_actions();
 }
 
-RunActions CalibrationRun::on_temperature(const TemperatureSample& received) {
-  TemperatureSample reading = received;
+RunActions CalibrationRun::on_channel_sample(const ChannelSample& received) {
+  ChannelSample reading = received;
   reading.stamp_s += options_.imu_time_offset_s;  // the IMU's clock
-  accept_rows(assembler_.add_temperature(reading));
+  accept_rows(assembler_.add_channel_sample(reading));
   return take_actions();
 }
 

@@ -22,7 +22,7 @@ std::string describe(const GimbalEvent& e) {
 bool DwellAssembler::Later::operator()(const Event& a, const Event& b) const {
   // Min-heap on stamp; at equal stamps a command before a sample, then arrival order.
   if (a.stamp_s != b.stamp_s) return a.stamp_s > b.stamp_s;
-  if (a.is_command != b.is_command) return !a.is_command;
+  if (a.is_command() != b.is_command()) return !a.is_command();
   return a.sequence > b.sequence;
 }
 
@@ -38,8 +38,7 @@ void DwellAssembler::reset() {
   have_moving_ = false;
   in_dwell_ = false;
   accumulator_.reset();
-  temperature_sum_c_ = 0.0;
-  temperature_count_ = 0;
+  channel_accumulators_ = {};
   done_ = false;
   table_ = PositionTable();
   counters_ = AssemblerCounters();
@@ -58,8 +57,7 @@ CompletedRows DwellAssembler::add_command(const GimbalEvent& event) {
     ++counters_.commands_out_of_order;
     counters_.last_warning = "gimbal command " + describe(event) + " arrived after its stamp was processed";
   }
-  Event e{event.stamp_s, next_sequence_++, true, event, ImuSample(), false, 0.0};
-  push(e, &out);
+  push(Event{event.stamp_s, next_sequence_++, event}, &out);
   return out;
 }
 
@@ -73,21 +71,18 @@ CompletedRows DwellAssembler::add_sample(const ImuSample& sample) {
     ++counters_.dropped_late;
     return out;
   }
-  Event e{sample.stamp_s, next_sequence_++, false, GimbalEvent(), sample, false, 0.0};
-  push(e, &out);
+  push(Event{sample.stamp_s, next_sequence_++, sample}, &out);
   return out;
 }
 
-CompletedRows DwellAssembler::add_temperature(const TemperatureSample& reading) {
+CompletedRows DwellAssembler::add_channel_sample(const ChannelSample& reading) {
   CompletedRows out;
-  if (!std::isfinite(reading.stamp_s) || !std::isfinite(reading.temperature_c) ||
+  if (!std::isfinite(reading.stamp_s) || !std::isfinite(reading.value) ||
       reading.stamp_s < released_until_s_) {
-    ++counters_.temperatures_dropped;
+    ++counters_.channel_dropped[channel_index(reading.channel)];
     return out;
   }
-  Event e{reading.stamp_s, next_sequence_++,       false, GimbalEvent(),
-          ImuSample(),     /*is_temperature=*/true, reading.temperature_c};
-  push(e, &out);
+  push(Event{reading.stamp_s, next_sequence_++, reading}, &out);
   return out;
 }
 
@@ -132,28 +127,29 @@ void DwellAssembler::release_until(double stamp_s, CompletedRows* out) {
 }
 
 void DwellAssembler::process(const Event& event, CompletedRows* out) {
-  if (event.is_command) {
-    if (observe_command_) observe_command_(event.command);
-    process_command(event.command, out);
-  } else if (event.is_temperature) {
-    process_temperature(event.stamp_s, event.temperature_c);
+  if (const auto* command = std::get_if<GimbalEvent>(&event.payload)) {
+    if (observe_command_) observe_command_(*command);
+    process_command(*command, out);
+  } else if (const auto* reading = std::get_if<ChannelSample>(&event.payload)) {
+    process_channel(*reading);
   } else {
+    const ImuSample& sample = std::get<ImuSample>(event.payload);
     // Released in stamp order, so a sample with the stamp of the previous one is a copy (the
     // same values: a duplicated message, used once) or a conflict (a clock that went back).
-    if (event.sample.stamp_s == last_sample_stamp_s_) {
-      if (event.sample.outputs == last_sample_outputs_) {
+    if (sample.stamp_s == last_sample_stamp_s_) {
+      if (sample.outputs == last_sample_outputs_) {
         ++counters_.duplicates;
       } else {
         ++counters_.dropped_backwards;
       }
       return;
     }
-    if (event.sample.stamp_s > last_sample_stamp_s_) {
-      last_sample_stamp_s_ = event.sample.stamp_s;
-      last_sample_outputs_ = event.sample.outputs;
+    if (sample.stamp_s > last_sample_stamp_s_) {
+      last_sample_stamp_s_ = sample.stamp_s;
+      last_sample_outputs_ = sample.outputs;
     }
-    if (observe_sample_) observe_sample_(event.sample);
-    process_sample(event.sample);
+    if (observe_sample_) observe_sample_(sample);
+    process_sample(sample);
   }
 }
 
@@ -182,8 +178,7 @@ void DwellAssembler::process_command(const GimbalEvent& command, CompletedRows* 
       in_dwell_ = true;
       dwell_command_ = command;
       accumulator_.reset();
-      temperature_sum_c_ = 0.0;
-      temperature_count_ = 0;
+      channel_accumulators_ = {};
       have_moving_ = false;
       break;
     case GimbalState::Done:
@@ -210,14 +205,24 @@ void DwellAssembler::process_sample(const ImuSample& sample) {
   ++counters_.samples_used;
 }
 
-void DwellAssembler::process_temperature(double stamp_s, double temperature_c) {
-  if (!in_dwell_ || stamp_s < dwell_command_.stamp_s + options_.settle_discard_s) {
-    ++counters_.temperatures_dropped;
+void DwellAssembler::process_channel(const ChannelSample& reading) {
+  const std::size_t c = channel_index(reading.channel);
+  if (!in_dwell_ || reading.stamp_s < dwell_command_.stamp_s + options_.settle_discard_s) {
+    ++counters_.channel_dropped[c];
     return;
   }
-  temperature_sum_c_ += temperature_c;
-  ++temperature_count_;
-  ++counters_.temperatures_used;
+  ChannelAccumulator& a = channel_accumulators_[c];
+  a.sum += reading.value;
+  ++a.count;
+  ++counters_.channel_used[c];
+}
+
+double DwellAssembler::ChannelAccumulator::value(Aggregate aggregate) const {
+  if (count == 0) return std::numeric_limits<double>::quiet_NaN();
+  switch (aggregate) {
+    case Aggregate::Mean: return sum / static_cast<double>(count);
+  }
+  return std::numeric_limits<double>::quiet_NaN();
 }
 
 void DwellAssembler::close_dwell(double end_stamp_s, CompletedRows* out) {
@@ -238,8 +243,8 @@ void DwellAssembler::close_dwell(double end_stamp_s, CompletedRows* out) {
   row.n = accumulator_.count();
   row.mean = accumulator_.mean();
   row.std = accumulator_.sample_std();
-  if (temperature_count_ > 0)
-    row.temperature_c = temperature_sum_c_ / static_cast<double>(temperature_count_);
+  for (const ChannelSpec& spec : kChannels)
+    row.*spec.value = channel_accumulators_[channel_index(spec.id)].value(spec.aggregate);
   table_.rows.push_back(row);
   accumulator_.reset();
   out->push_back(row);

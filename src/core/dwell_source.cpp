@@ -18,12 +18,21 @@ void append(CompletedRows* to, const CompletedRows& from) {
 }
 
 // One row of the parts of a rest (the sides of a disturbance cut out): counts, means and sums of
-// squares combined (Chan's update), the temperature as the samples' weighted mean.
+// squares combined (Chan's update), each channel's value (core::kChannels, all Aggregate::Mean)
+// as the samples' weighted mean over the parts that have one.
 DwellRecord join_parts(const CompletedRows& parts) {
   DwellRecord row = parts.front();
   Eigen::Vector3d m2 = row.std.array().square().matrix() * static_cast<double>(row.n - 1);
-  double temperature_sum = row.has_temperature() ? row.temperature_c * row.n : 0.0;
-  std::uint64_t temperature_n = row.has_temperature() ? row.n : 0;
+  PerChannel<double> channel_sum{};
+  PerChannel<std::uint64_t> channel_n{};
+  auto add_channels = [&](const DwellRecord& part) {
+    for (const ChannelSpec& spec : kChannels) {
+      if (!has_value(part, spec)) continue;
+      channel_sum[channel_index(spec.id)] += part.*spec.value * static_cast<double>(part.n);
+      channel_n[channel_index(spec.id)] += part.n;
+    }
+  };
+  add_channels(row);
   for (std::size_t i = 1; i < parts.size(); ++i) {
     const DwellRecord& b = parts[i];
     const double na = static_cast<double>(row.n), nb = static_cast<double>(b.n);
@@ -32,14 +41,14 @@ DwellRecord join_parts(const CompletedRows& parts) {
           delta.array().square().matrix() * (na * nb / (na + nb));
     row.mean += delta * (nb / (na + nb));
     row.n += b.n;
-    if (b.has_temperature()) {
-      temperature_sum += b.temperature_c * b.n;
-      temperature_n += b.n;
-    }
+    add_channels(b);
   }
   if (row.n > 1) row.std = (m2 / static_cast<double>(row.n - 1)).array().sqrt().matrix();
-  row.temperature_c = temperature_n > 0 ? temperature_sum / static_cast<double>(temperature_n)
-                                        : std::numeric_limits<double>::quiet_NaN();
+  for (const ChannelSpec& spec : kChannels) {
+    const std::size_t c = channel_index(spec.id);
+    row.*spec.value = channel_n[c] > 0 ? channel_sum[c] / static_cast<double>(channel_n[c])
+                                       : std::numeric_limits<double>::quiet_NaN();
+  }
   return row;
 }
 
@@ -53,8 +62,8 @@ CompletedRows CommandedDwellSource::add_command(const GimbalEvent& event) {
 CompletedRows CommandedDwellSource::add_sample(const ImuSample& sample) {
   return assembler_->add_sample(sample);
 }
-CompletedRows CommandedDwellSource::add_temperature(const TemperatureSample& reading) {
-  return assembler_->add_temperature(reading);
+CompletedRows CommandedDwellSource::add_channel_sample(const ChannelSample& reading) {
+  return assembler_->add_channel_sample(reading);
 }
 CompletedRows CommandedDwellSource::finish() { return assembler_->flush(); }
 
@@ -78,8 +87,8 @@ CompletedRows DetectedDwellSource::add_sample(const ImuSample& sample) {
   return release_rests();
 }
 
-CompletedRows DetectedDwellSource::add_temperature(const TemperatureSample& reading) {
-  held_temperatures_.push_back(reading);
+CompletedRows DetectedDwellSource::add_channel_sample(const ChannelSample& reading) {
+  held_readings_.push_back(reading);
   return {};
 }
 
@@ -92,15 +101,15 @@ CompletedRows DetectedDwellSource::finish() {
 }
 
 void DetectedDwellSource::release_until(double stamp_s, CompletedRows* rows) {
-  // Samples and temperatures in stamp order (a temperature before a sample at equal stamps).
+  // Samples and channel readings in stamp order (a reading before a sample at equal stamps).
   while (true) {
     const bool sample = !held_.empty() && held_.front().stamp_s < stamp_s;
     const bool reading =
-        !held_temperatures_.empty() && held_temperatures_.front().stamp_s < stamp_s;
+        !held_readings_.empty() && held_readings_.front().stamp_s < stamp_s;
     if (!sample && !reading) return;
-    if (reading && (!sample || held_temperatures_.front().stamp_s <= held_.front().stamp_s)) {
-      append(rows, assembler_->add_temperature(held_temperatures_.front()));
-      held_temperatures_.pop_front();
+    if (reading && (!sample || held_readings_.front().stamp_s <= held_.front().stamp_s)) {
+      append(rows, assembler_->add_channel_sample(held_readings_.front()));
+      held_readings_.pop_front();
     } else {
       append(rows, assembler_->add_sample(held_.front()));
       held_.pop_front();

@@ -39,15 +39,13 @@ Eigen::Vector3d DwellAccumulator::sample_std() const {
 const char* const kPositionTableHeader =
     "phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w";
 const char* const kDirectionColumns = ",f_x,f_y,f_z";
-const char* const kTemperatureColumn = ",temperature_c";
 
 namespace {
 
 constexpr int kColumns = 12;
-constexpr int kTemperatureName = 15;  // kColumnNames index of temperature_c, wherever it stands
-const char* const kColumnNames[16] = {
-    "phase",  "step",  "angle_rad", "t_start", "t_end", "n",   "mean_u", "mean_v",
-    "mean_w", "std_u", "std_v",     "std_w",   "f_x",   "f_y", "f_z",    "temperature_c"};
+const char* const kColumnNames[15] = {"phase", "step",  "angle_rad", "t_start", "t_end",
+                                      "n",     "mean_u", "mean_v",   "mean_w",  "std_u",
+                                      "std_v", "std_w",  "f_x",      "f_y",     "f_z"};
 
 std::string trim(const std::string& s) {
   const auto begin = s.find_first_not_of(" \t\r\n");
@@ -61,7 +59,7 @@ std::string trim(const std::string& s) {
 }
 
 double parse_double(const std::string& field, const std::string& source, std::size_t line,
-                    int column) {
+                    const char* column) {
   const std::string text = trim(field);
   char* end = nullptr;
   errno = 0;
@@ -69,26 +67,22 @@ double parse_double(const std::string& field, const std::string& source, std::si
   // ERANGE alone is not an error: an underflow to a denormal or zero is still a number, and an
   // overflow comes back as infinity, which the finiteness check below rejects.
   if (text.empty() || end != text.c_str() + text.size()) {
-    fail(source, line,
-         std::string("field ") + kColumnNames[column] + " is not a number: '" + text + "'");
+    fail(source, line, std::string("field ") + column + " is not a number: '" + text + "'");
   }
-  if (!std::isfinite(value))
-    fail(source, line, std::string("field ") + kColumnNames[column] + " is not finite");
+  if (!std::isfinite(value)) fail(source, line, std::string("field ") + column + " is not finite");
   return value;
 }
 
 std::uint64_t parse_count(const std::string& field, const std::string& source, std::size_t line,
-                          int column) {
+                          const char* column) {
   const std::string text = trim(field);
   if (text.empty() || text.find_first_not_of("0123456789") != std::string::npos) {
     fail(source, line,
-         std::string("field ") + kColumnNames[column] + " must be a non-negative integer, got '" +
-             text + "'");
+         std::string("field ") + column + " must be a non-negative integer, got '" + text + "'");
   }
   errno = 0;
   const unsigned long long value = std::strtoull(text.c_str(), nullptr, 10);
-  if (errno == ERANGE)
-    fail(source, line, std::string("field ") + kColumnNames[column] + " is too large");
+  if (errno == ERANGE) fail(source, line, std::string("field ") + column + " is too large");
   return value;
 }
 
@@ -101,16 +95,96 @@ std::vector<std::string> split(const std::string& line) {
   return fields;
 }
 
+std::string expected_header() {
+  std::string channels;
+  for (const ChannelSpec& spec : kChannels) channels += std::string(" ,") + spec.column;
+  return std::string("expected the header '") + kPositionTableHeader + "' (optionally + '" +
+         kDirectionColumns + "', then any of the channel columns:" + channels + ")";
+}
+
+// Where each optional column stands among the fields of a row.
+struct FieldLayout {
+  TableColumns columns;
+  int count = kColumns;
+  int direction = -1;                 // index of f_x
+  PerChannel<int> channel_field{};    // index of each channel's column, -1 without
+};
+
+FieldLayout layout_of(const std::string& header, const std::string& source, std::size_t line) {
+  FieldLayout layout;
+  layout.channel_field.fill(-1);
+  const std::string base = kPositionTableHeader;
+  if (header.compare(0, base.size(), base) != 0 ||
+      (header.size() > base.size() && header[base.size()] != ','))
+    fail(source, line, expected_header());
+  std::vector<std::string> names = split(header.substr(base.size()));
+  if (!names.empty()) names.erase(names.begin());  // before the first ','
+  std::size_t k = 0;
+  if (names.size() >= 3 && trim(names[0]) == "f_x" && trim(names[1]) == "f_y" &&
+      trim(names[2]) == "f_z") {
+    layout.columns.directions = true;
+    layout.direction = kColumns;
+    k = 3;
+  }
+  // The channel columns follow, in any order, each at most once.
+  for (; k < names.size(); ++k) {
+    const ChannelSpec* spec = channel_by_column(trim(names[k]));
+    if (spec == nullptr) fail(source, line, "unknown column '" + trim(names[k]) + "'; " + expected_header());
+    const std::size_t c = channel_index(spec->id);
+    if (layout.columns.channels[c]) fail(source, line, std::string("column ") + spec->column + " twice");
+    layout.columns.channels[c] = true;
+    layout.channel_field[c] = kColumns + static_cast<int>(k);
+  }
+  layout.count = kColumns + static_cast<int>(names.size());
+  return layout;
+}
+
 }  // namespace
+
+std::string TableColumns::header() const {
+  std::string line = kPositionTableHeader;
+  if (directions) line += kDirectionColumns;
+  for (const ChannelSpec& spec : kChannels)
+    if (channels[channel_index(spec.id)]) line += std::string(",") + spec.column;
+  return line;
+}
+
+bool TableColumns::covers(const TableColumns& other) const {
+  if (other.directions && !directions) return false;
+  for (std::size_t c = 0; c < kChannelCount; ++c)
+    if (other.channels[c] && !channels[c]) return false;
+  return true;
+}
+
+TableColumns columns_needed(const DwellRecord& row) {
+  TableColumns columns;
+  columns.directions = row.has_direction;
+  for (const ChannelSpec& spec : kChannels)
+    columns.channels[channel_index(spec.id)] = has_value(row, spec);
+  return columns;
+}
+
+TableColumns columns_needed(const PositionTable& table) {
+  TableColumns columns;
+  for (const DwellRecord& row : table.rows) {
+    const TableColumns of_row = columns_needed(row);
+    columns.directions = columns.directions || of_row.directions;
+    for (std::size_t c = 0; c < kChannelCount; ++c)
+      columns.channels[c] = columns.channels[c] || of_row.channels[c];
+  }
+  return columns;
+}
+
+TableColumns parse_header(const std::string& line, const std::string& source_name) {
+  return layout_of(trim(line), source_name, 1).columns;
+}
 
 PositionTable read_position_table(std::istream& in, const std::string& source_name) {
   PositionTable table;
   std::string line;
   std::size_t line_number = 0;
   bool have_header = false;
-  int columns = kColumns;
-  bool direction_columns = false;
-  int temperature_field = -1;  // index of temperature_c among the fields, -1 without
+  FieldLayout layout;
   while (std::getline(in, line)) {
     ++line_number;
     // A UTF-8 byte-order mark, as spreadsheet programs write, is not part of the header.
@@ -118,37 +192,26 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
     const std::string text = trim(line);
     if (text.empty() || text[0] == '#') continue;
     if (!have_header) {
-      const std::string base = kPositionTableHeader;
-      if (text == base + kDirectionColumns) {
-        direction_columns = true;
-      } else if (text == base + kTemperatureColumn) {
-        temperature_field = kColumns;
-      } else if (text == base + kDirectionColumns + kTemperatureColumn) {
-        direction_columns = true;
-        temperature_field = kColumns + 3;
-      } else if (text != base) {
-        fail(source_name, line_number,
-             std::string("expected the header '") + kPositionTableHeader + "' (optionally + '" +
-                 kDirectionColumns + "', then optionally + '" + kTemperatureColumn + "')");
-      }
-      columns = kColumns + (direction_columns ? 3 : 0) + (temperature_field >= 0 ? 1 : 0);
+      layout = layout_of(text, source_name, line_number);
       have_header = true;
       continue;
     }
     const std::vector<std::string> fields = split(text);
-    if (static_cast<int>(fields.size()) != columns) {
+    if (static_cast<int>(fields.size()) != layout.count) {
       fail(source_name, line_number,
-           "expected " + std::to_string(columns) + " fields, found " +
+           "expected " + std::to_string(layout.count) + " fields, found " +
                std::to_string(fields.size()));
     }
     DwellRecord row;
     // Known orientation: f_x,f_y,f_z all given (all empty: a gimbal row).
-    if (direction_columns) {
-      const bool any = !trim(fields[12]).empty() || !trim(fields[13]).empty() ||
-                       !trim(fields[14]).empty();
+    if (layout.direction >= 0) {
+      const int d = layout.direction;
+      const bool any = !trim(fields[d]).empty() || !trim(fields[d + 1]).empty() ||
+                       !trim(fields[d + 2]).empty();
       if (any) {
         for (int k = 0; k < 3; ++k)
-          row.direction(k) = parse_double(fields[12 + k], source_name, line_number, 12 + k);
+          row.direction(k) =
+              parse_double(fields[d + k], source_name, line_number, kColumnNames[12 + k]);
         const double norm = row.direction.norm();
         if (std::abs(norm - 1.0) > 0.01) {
           std::ostringstream m;
@@ -170,32 +233,40 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
            "field phase must be x, y or z (or - for a known direction f_x,f_y,f_z or a rest of "
            "unknown orientation), got '" + phase + "'");
     }
-    const std::uint64_t step = parse_count(fields[1], source_name, line_number, 1);
+    const std::uint64_t step = parse_count(fields[1], source_name, line_number, kColumnNames[1]);
     if (step > std::numeric_limits<std::uint32_t>::max())
       fail(source_name, line_number, "field step is too large");
     row.step = static_cast<std::uint32_t>(step);
     row.angle_rad = (row.has_direction || row.orientation_unknown) && trim(fields[2]).empty()
                         ? 0.0
-                        : parse_double(fields[2], source_name, line_number, 2);
-    row.t_start_s = parse_double(fields[3], source_name, line_number, 3);
-    row.t_end_s = parse_double(fields[4], source_name, line_number, 4);
+                        : parse_double(fields[2], source_name, line_number, kColumnNames[2]);
+    row.t_start_s = parse_double(fields[3], source_name, line_number, kColumnNames[3]);
+    row.t_end_s = parse_double(fields[4], source_name, line_number, kColumnNames[4]);
     if (row.t_end_s < row.t_start_s)
       fail(source_name, line_number, "field t_end is before t_start");
-    row.n = parse_count(fields[5], source_name, line_number, 5);
+    row.n = parse_count(fields[5], source_name, line_number, kColumnNames[5]);
     if (row.n == 0)
       fail(source_name, line_number, "field n is 0: a dwell without samples has no mean");
     for (int k = 0; k < 3; ++k)
-      row.mean(k) = parse_double(fields[6 + k], source_name, line_number, 6 + k);
+      row.mean(k) = parse_double(fields[6 + k], source_name, line_number, kColumnNames[6 + k]);
     for (int k = 0; k < 3; ++k) {
-      row.std(k) = parse_double(fields[9 + k], source_name, line_number, 9 + k);
+      row.std(k) = parse_double(fields[9 + k], source_name, line_number, kColumnNames[9 + k]);
       if (row.std(k) < 0.0)
         fail(source_name, line_number,
              std::string("field ") + kColumnNames[9 + k] + " is negative");
     }
-    // An empty temperature_c: no temperature recorded during this dwell.
-    if (temperature_field >= 0 && !trim(fields[temperature_field]).empty())
-      row.temperature_c =
-          parse_double(fields[temperature_field], source_name, line_number, kTemperatureName);
+    // A channel's empty field: no reading during this dwell (allowed when the channel is
+    // optional per row).
+    for (const ChannelSpec& spec : kChannels) {
+      const int f = layout.channel_field[channel_index(spec.id)];
+      if (f < 0) continue;
+      if (trim(fields[f]).empty()) {
+        if (!spec.optional_per_row)
+          fail(source_name, line_number, std::string("field ") + spec.column + " is empty");
+        continue;
+      }
+      row.*spec.value = parse_double(fields[f], source_name, line_number, spec.column);
+    }
     table.rows.push_back(row);
   }
   if (!have_header)
@@ -210,43 +281,37 @@ PositionTable read_position_table_file(const std::string& path) {
   return read_position_table(in, path);
 }
 
-namespace {
-
-void write_row(std::ostream& out, const DwellRecord& row, bool direction_columns,
-               bool temperature_column) {
+void write_position_row(std::ostream& out, const DwellRecord& row, const TableColumns& columns) {
   const auto precision = out.precision(std::numeric_limits<double>::max_digits10);
   out << (row.has_direction || row.orientation_unknown ? "-" : phase_name(row.phase)) << ','
       << row.step << ','
       << row.angle_rad << ',' << row.t_start_s << ',' << row.t_end_s << ',' << row.n;
   for (int k = 0; k < 3; ++k) out << ',' << row.mean(k);
   for (int k = 0; k < 3; ++k) out << ',' << row.std(k);
-  if (direction_columns) {
+  if (columns.directions) {
     for (int k = 0; k < 3; ++k) {
       out << ',';
       if (row.has_direction) out << row.direction(k);
     }
   }
-  if (temperature_column) {
+  for (const ChannelSpec& spec : kChannels) {
+    if (!columns.channels[channel_index(spec.id)]) continue;
     out << ',';
-    if (row.has_temperature()) out << row.temperature_c;
+    if (has_value(row, spec)) out << row.*spec.value;
   }
   out << '\n';
   out.flush();
   out.precision(precision);
 }
 
-}  // namespace
-
-void write_position_row(std::ostream& out, const DwellRecord& row, bool temperature_column) {
-  write_row(out, row, row.has_direction, temperature_column);
+void write_position_table(std::ostream& out, const PositionTable& table,
+                          const TableColumns& columns) {
+  out << columns.header() << '\n';
+  for (const DwellRecord& row : table.rows) write_position_row(out, row, columns);
 }
 
 void write_position_table(std::ostream& out, const PositionTable& table) {
-  const bool directions = rows_with_direction(table) > 0;
-  const bool temperatures = rows_with_temperature(table) > 0;
-  out << kPositionTableHeader << (directions ? kDirectionColumns : "")
-      << (temperatures ? kTemperatureColumn : "") << '\n';
-  for (const DwellRecord& row : table.rows) write_row(out, row, directions, temperatures);
+  write_position_table(out, table, columns_needed(table));
 }
 
 void write_position_table_file(const std::string& path, const PositionTable& table) {
@@ -336,6 +401,60 @@ int approach_of_appended_row(const PositionTable& table, Phase phase, double ang
     if (!row.has_direction) approach.visit(row.phase, row.angle_rad);
   }
   return approach.approach_of(phase, angle_rad);
+}
+
+SupersededRows find_remeasured_rows(const PositionTable& table) {
+  SupersededRows out;
+  const std::vector<DwellRecord>& rows = table.rows;
+  auto gimbal = [&](std::size_t i) {
+    return !rows[i].has_direction && !rows[i].orientation_unknown;
+  };
+  auto same_position = [&](std::size_t i, std::size_t j) {
+    return gimbal(i) && gimbal(j) && rows[i].phase == rows[j].phase && rows[i].step == rows[j].step;
+  };
+  std::size_t a = 0;
+  while (a < rows.size()) {
+    std::size_t b = a;  // [a, b]: consecutive visits of one position
+    while (b + 1 < rows.size() && same_position(a, b + 1)) ++b;
+    const std::size_t visits = b - a + 1;
+    if (visits > 1) {
+      const std::uint32_t step = rows[a].step;
+      const bool lower_before = a == 0 || !gimbal(a - 1) || rows[a - 1].phase != rows[a].phase ||
+                                rows[a - 1].step < step;
+      const bool lower_after = b + 1 < rows.size() && gimbal(b + 1) &&
+                               rows[b + 1].phase == rows[a].phase && rows[b + 1].step < step;
+      const std::size_t kept = lower_before && lower_after ? 2 : 1;  // the turn: up and down
+      if (kept == 1) {
+        for (std::size_t i = a; i < b; ++i) out.rows.push_back(i);  // the last one is the retry
+      } else if (visits > kept) {
+        // The last visit is the return sweep's; of the others, all but the one with the most
+        // samples were cut short.
+        std::vector<std::size_t> earlier;
+        for (std::size_t i = a; i < b; ++i) earlier.push_back(i);
+        std::stable_sort(earlier.begin(), earlier.end(),
+                         [&](std::size_t i, std::size_t j) { return rows[i].n < rows[j].n; });
+        earlier.pop_back();
+        out.rows.insert(out.rows.end(), earlier.begin(), earlier.end());
+        out.by_samples += earlier.size();
+      }
+    }
+    a = b + 1;
+  }
+  std::sort(out.rows.begin(), out.rows.end());
+  return out;
+}
+
+PositionTable without_rows(PositionTable table, const std::vector<std::size_t>& rows) {
+  std::size_t k = 0, kept = 0;
+  for (std::size_t i = 0; i < table.rows.size(); ++i) {
+    if (k < rows.size() && rows[k] == i) {
+      ++k;
+      continue;
+    }
+    table.rows[kept++] = table.rows[i];
+  }
+  table.rows.resize(kept);
+  return table;
 }
 
 std::array<int, 3> positions_per_phase(const PositionTable& table) {

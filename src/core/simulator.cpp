@@ -383,12 +383,13 @@ void feed_in_stamp_order(const Recording& recording, DwellAssembler* assembler) 
     }
     while (k < recording.temperatures.size() &&
            recording.temperatures[k].stamp_s <= sample.stamp_s) {
-      assembler->add_temperature(recording.temperatures[k++]);
+      assembler->add_channel_sample(channel_sample(recording.temperatures[k++]));
     }
     assembler->add_sample(sample);
   }
   while (c < recording.commands.size()) assembler->add_command(recording.commands[c++]);
-  while (k < recording.temperatures.size()) assembler->add_temperature(recording.temperatures[k++]);
+  while (k < recording.temperatures.size())
+    assembler->add_channel_sample(channel_sample(recording.temperatures[k++]));
   assembler->flush();
 }
 

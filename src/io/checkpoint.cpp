@@ -21,31 +21,52 @@ std::string CheckpointFiles::path(const char* name) const {
 
 void CheckpointFiles::append_row(const core::DwellRecord& row) {
   if (!enabled()) return;
+  const core::TableColumns needed = core::columns_needed(row);
   if (!table_.is_open()) {
     std::error_code ec;
     const bool has_content = std::filesystem::exists(table_path()) &&
                              std::filesystem::file_size(table_path(), ec) > 0 && !ec;
     const bool continued = append_ && has_content;
-    temperature_column_ = row.has_temperature();
+    columns_ = needed;
     if (continued) {
       std::ifstream existing(table_path());
       std::string header;
       std::getline(existing, header);
-      const std::string suffix = core::kTemperatureColumn;
-      while (!header.empty() && (header.back() == '\r' || header.back() == ' ')) header.pop_back();
-      temperature_column_ = header.size() >= suffix.size() &&
-                            header.compare(header.size() - suffix.size(), suffix.size(), suffix) == 0;
+      try {
+        columns_ = core::parse_header(header, table_path());
+      } catch (const std::exception& e) {
+        throw IoError(e.what());
+      }
     }
     table_.open(table_path(),
                 append_ ? std::ios::out | std::ios::app : std::ios::out | std::ios::trunc);
     if (!table_) throw IoError("cannot write '" + table_path() + "'");
-    if (!continued)
-      table_ << core::kPositionTableHeader << (temperature_column_ ? core::kTemperatureColumn : "")
-             << '\n';
+    if (!continued) table_ << columns_.header() << '\n';
   }
+  if (!columns_.covers(needed)) widen(needed);
   // flushed: the checkpoint of this dwell
-  core::write_position_row(table_, row, temperature_column_);
+  core::write_position_row(table_, row, columns_);
   if (!table_) throw IoError("cannot write '" + table_path() + "' (disk full?)");
+}
+
+void CheckpointFiles::widen(const core::TableColumns& needed) {
+  // A channel that starts late (no reading in the first dwells): the table so far is rewritten
+  // with its column (empty in the earlier rows), so the later values are kept.
+  table_.close();
+  core::PositionTable so_far;
+  try {
+    so_far = core::read_position_table_file(table_path());
+  } catch (const std::exception& e) {
+    throw IoError(e.what());
+  }
+  columns_.directions = columns_.directions || needed.directions;
+  for (std::size_t c = 0; c < core::kChannelCount; ++c)
+    columns_.channels[c] = columns_.channels[c] || needed.channels[c];
+  std::ostringstream text;
+  core::write_position_table(text, so_far, columns_);
+  write_file_atomically(table_path(), text.str());
+  table_.open(table_path(), std::ios::out | std::ios::app);
+  if (!table_) throw IoError("cannot write '" + table_path() + "'");
 }
 
 void CheckpointFiles::write_state(const core::CheckpointState& state) {

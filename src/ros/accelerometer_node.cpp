@@ -94,7 +94,7 @@ AccelerometerNode::AccelerometerNode(ros::NodeHandle nh, ros::NodeHandle pnh,
   source_ = std::move(simulated);
   imu_pub_ = nh_.advertise<sensor_msgs::Imu>(names::kImuTopic, 10000);
   if (source_->publishes_temperature())
-    temperature_pub_ = nh_.advertise<sensor_msgs::Temperature>(names::kTemperatureTopic, 1000);
+    temperature_pub_ = nh_.advertise<sensor_msgs::Temperature>(core::channel_spec(core::Channel::Temperature).topic, 1000);
   tf_sub_ = nh_.subscribe(names::kTfTopic, 1000, &AccelerometerNode::on_tf, this,
                           ros::TransportHints().tcpNoDelay());
   command_sub_ =

@@ -7,7 +7,6 @@
 #include <rosbag/exceptions.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/Imu.h>
-#include <sensor_msgs/Temperature.h>
 
 #include <algorithm>
 #include <chrono>
@@ -183,17 +182,27 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
     const std::vector<BagTopic> topics = scanner ? scanner->topics() : list_topics(bag);
     const RunTopics run_topics =
         resolve_run_topics(options.imu_topic, options.command_topic, topics, options.imu_by_type,
-                           options.temperature_topic, options.command_topic_optional);
-    stats.temperature_topic = run_topics.temperature;
+                           options.channel_topics, options.command_topic_optional);
+    stats.channel_topics = run_topics.channels;
     stats.topic_note = run_topics.note;
     stats.imu_topic = run_topics.imu;
     stats.command_topic = run_topics.command;
 
-    // Connection ids of the two topics in the chunk scan.
+    // Connection ids of the run's topics in the chunk scan.
     std::vector<std::uint32_t> imu_connections;
     std::vector<std::uint32_t> command_connections;
-    std::vector<std::uint32_t> temperature_connections;
+    core::PerChannel<std::vector<std::uint32_t>> channel_connections;
     std::uint64_t total = 0;
+    const std::vector<ChannelMessage>& bindings = channel_messages();
+    auto channel_connections_found = [&] {
+      for (std::size_t c = 0; c < core::kChannelCount; ++c) {
+        if (!stats.channel_topics[c].empty() &&
+            !scanner->connections_of(stats.channel_topics[c], bindings[c].md5sum,
+                                     &channel_connections[c], &total))
+          return false;
+      }
+      return true;
+    };
     if (scanner &&
         !(scanner->connections_of(stats.imu_topic,
                                   ros::message_traits::MD5Sum<sensor_msgs::Imu>::value(),
@@ -202,10 +211,7 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
            scanner->connections_of(stats.command_topic,
                                    ros::message_traits::MD5Sum<GimbalCommand>::value(),
                                    &command_connections, &total)) &&
-          (stats.temperature_topic.empty() ||
-           scanner->connections_of(stats.temperature_topic,
-                                   ros::message_traits::MD5Sum<sensor_msgs::Temperature>::value(),
-                                   &temperature_connections, &total)))) {
+          channel_connections_found())) {
       scanner.reset();  // another version of a message type: rosbag's instantiate() reports it
       open_bag(bag, path);
     }
@@ -213,7 +219,8 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
     if (!scanner) {
       std::vector<std::string> query{stats.imu_topic};
       if (!stats.command_topic.empty()) query.push_back(stats.command_topic);
-      if (!stats.temperature_topic.empty()) query.push_back(stats.temperature_topic);
+      for (const std::string& topic : stats.channel_topics)
+        if (!topic.empty()) query.push_back(topic);
       view.reset(new rosbag::View(bag, rosbag::TopicQuery(query)));
       total = view->size();
     }
@@ -242,14 +249,19 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
       ++stats.imu_messages;
       progress.update(++done);
     };
-    auto on_temperature = [&](const ros::Time& bag_time, const sensor_msgs::Temperature& msg) {
+    auto on_channel = [&](const ros::Time& bag_time, core::ChannelSample reading) {
       on_time(bag_time);
       // On the IMU's clock, like its samples.
-      assembler.add_temperature(
-          core::TemperatureSample{msg.header.stamp.toSec() + options.imu_time_offset_s,
-                                  msg.temperature});
-      ++stats.temperature_messages;
+      reading.stamp_s += options.imu_time_offset_s;
+      assembler.add_channel_sample(reading);
+      ++stats.channel_messages[core::channel_index(reading.channel)];
       progress.update(++done);
+    };
+    // The channel whose topic `topic` is, kChannelCount for none.
+    auto channel_of_topic = [&](const std::string& topic) {
+      std::size_t c = 0;
+      while (c < core::kChannelCount && stats.channel_topics[c] != topic) ++c;
+      return c;
     };
     auto on_command = [&](const ros::Time& bag_time, const GimbalCommand& command) {
       on_time(bag_time);
@@ -273,23 +285,26 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
       stats.reader = "chunk scan";
       detail::ImuAccelerationOnly imu;
       GimbalCommand command;
-      sensor_msgs::Temperature temperature;
       auto contains = [](const std::vector<std::uint32_t>& ids, std::uint32_t id) {
         return std::find(ids.begin(), ids.end(), id) != ids.end();
       };
       scanner->scan([&](std::uint32_t conn, const ros::Time& bag_time, const std::uint8_t* data,
                         std::uint32_t length, std::size_t offset) {
         const bool is_imu = contains(imu_connections, conn);
-        const bool is_temperature = !is_imu && contains(temperature_connections, conn);
-        if (!is_imu && !is_temperature && !contains(command_connections, conn)) return;
+        std::size_t channel = 0;
+        while (!is_imu && channel < core::kChannelCount &&
+               !contains(channel_connections[channel], conn))
+          ++channel;
+        const bool is_channel = !is_imu && channel < core::kChannelCount;
+        if (!is_imu && !is_channel && !contains(command_connections, conn)) return;
         try {
           ros::serialization::IStream stream(const_cast<std::uint8_t*>(data), length);
           if (is_imu) {
             ros::serialization::deserialize(stream, imu);
             on_imu(bag_time, imu);
-          } else if (is_temperature) {
-            ros::serialization::deserialize(stream, temperature);
-            on_temperature(bag_time, temperature);
+          } else if (is_channel) {
+            on_channel(bag_time,
+                       bindings[channel].deserialize(const_cast<std::uint8_t*>(data), length));
           } else {
             ros::serialization::deserialize(stream, command);
             on_command(bag_time, command);
@@ -306,12 +321,12 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
           if (!imu)
             throw BagInputError("message on '" + stats.imu_topic + "' is not a sensor_msgs/Imu");
           on_imu(m.getTime(), *imu);
-        } else if (m.getTopic() == stats.temperature_topic) {
-          const auto temperature = m.instantiate<sensor_msgs::Temperature>();
-          if (!temperature)
-            throw BagInputError("message on '" + stats.temperature_topic +
-                                "' is not a sensor_msgs/Temperature");
-          on_temperature(m.getTime(), *temperature);
+        } else if (const std::size_t c = channel_of_topic(m.getTopic()); c < core::kChannelCount) {
+          const auto reading = bindings[c].instantiate(m);
+          if (!reading)
+            throw BagInputError("message on '" + m.getTopic() + "' is not a " +
+                                bindings[c].datatype);
+          on_channel(m.getTime(), *reading);
         } else {
           const auto command = m.instantiate<GimbalCommand>();
           if (!command)
@@ -404,8 +419,10 @@ BagRun read_bags(const std::vector<std::string>& paths, const BagInputOptions& o
       }
       total.path += ", " + ordered[i].second;
       total.imu_messages += st.imu_messages;
-      total.temperature_messages += st.temperature_messages;
-      if (total.temperature_topic.empty()) total.temperature_topic = st.temperature_topic;
+      for (std::size_t c = 0; c < core::kChannelCount; ++c) {
+        total.channel_messages[c] += st.channel_messages[c];
+        if (total.channel_topics[c].empty()) total.channel_topics[c] = st.channel_topics[c];
+      }
       total.command_messages += st.command_messages;
       total.invalid_commands += st.invalid_commands;
       total.bag_start_s = std::min(total.bag_start_s, st.bag_start_s);

@@ -15,7 +15,6 @@ namespace {
 
 constexpr char kImuType[] = "sensor_msgs/Imu";
 constexpr char kCommandType[] = "accel_intrinsics/GimbalCommand";
-constexpr char kTemperatureType[] = "sensor_msgs/Temperature";
 
 std::string strip_slash(const std::string& name) {
   return (!name.empty() && name[0] == '/') ? name.substr(1) : name;
@@ -24,6 +23,18 @@ std::string strip_slash(const std::string& name) {
 bool ends_with(const std::string& text, const std::string& suffix) {
   return text.size() >= suffix.size() &&
          text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+// Every channel's topic, preferred in `ns`.
+core::PerChannel<std::string> resolve_channels(const core::PerChannel<std::string>& requested,
+                                               const std::vector<BagTopic>& topics,
+                                               const std::string& ns) {
+  core::PerChannel<std::string> resolved;
+  for (const core::ChannelSpec& spec : core::kChannels) {
+    const std::size_t c = core::channel_index(spec.id);
+    resolved[c] = resolve_optional_topic(requested[c], topics, spec.message_type, ns);
+  }
+  return resolved;
 }
 
 std::string join(const std::vector<std::string>& items) {
@@ -135,7 +146,8 @@ std::string topic_namespace(const std::string& resolved, const std::string& requ
 
 RunTopics resolve_run_topics(const std::string& imu_requested, const std::string& command_requested,
                              const std::vector<BagTopic>& topics, bool imu_by_type,
-                             const std::string& temperature_requested, bool command_optional) {
+                             const core::PerChannel<std::string>& channels_requested,
+                             bool command_optional) {
   RunTopics run;
   // Resolve the IMU first; its namespace disambiguates the command topic, and vice versa.
   try {
@@ -163,9 +175,9 @@ RunTopics resolve_run_topics(const std::string& imu_requested, const std::string
       run.note = "no IMU topic '" + imu_requested + "'; using " + run.imu +
                  ", the only sensor_msgs/Imu topic of the bag (--imu-topic names another)";
       run.command = command;
-      run.temperature = resolve_optional_topic(temperature_requested, topics, kTemperatureType,
-                                               namespace_of(command, names::kGimbalCommandTopic,
-                                                            command_requested));
+      run.channels = resolve_channels(
+          channels_requested, topics,
+          namespace_of(command, names::kGimbalCommandTopic, command_requested));
       return run;
     }
   }
@@ -176,11 +188,11 @@ RunTopics resolve_run_topics(const std::string& imu_requested, const std::string
       std::any_of(topics.begin(), topics.end(),
                   [](const BagTopic& t) { return t.datatype == kCommandType; });
   if (!any_command_topic && command_optional) {
-    run.temperature = resolve_optional_topic(temperature_requested, topics, kTemperatureType, imu_ns);
+    run.channels = resolve_channels(channels_requested, topics, imu_ns);
     return run;
   }
   run.command = resolve_topic(command_requested, topics, kCommandType, imu_ns);
-  run.temperature = resolve_optional_topic(temperature_requested, topics, kTemperatureType, imu_ns);
+  run.channels = resolve_channels(channels_requested, topics, imu_ns);
   return run;
 }
 

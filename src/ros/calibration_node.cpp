@@ -17,6 +17,7 @@
 #include "accel_intrinsics/io/analysis_report.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/result_document.h"
+#include "accel_intrinsics/ros/channel_messages.h"
 #include "accel_intrinsics/ros/conversions.h"
 #include "accel_intrinsics/ros/names.h"
 #include "accel_intrinsics/ros/params.h"
@@ -62,8 +63,11 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
       ros::VoidConstPtr(), imu_queue);
   immediate_queue_.set_coalesce_period(options_.imu_coalesce_s);
   imu_sub_ = nh_.subscribe(imu_options);
-  temperature_sub_ =
-      nh_.subscribe(names::kTemperatureTopic, 1000, &CalibrationNode::on_temperature, this);
+  for (const ChannelMessage& channel : channel_messages()) {
+    channel_subs_.push_back(channel.subscribe(
+        nh_, core::channel_spec(channel.channel).topic, 1000,
+        [this](const core::ChannelSample& reading) { handle_channel_sample(reading); }));
+  }
   progress_sub_ = nh_.subscribe(names::kProgressTopic, 10, &CalibrationNode::on_progress, this);
   timer_ =
       nh_.createTimer(ros::Duration(options_.flush_period_s), &CalibrationNode::on_timer, this);
@@ -94,7 +98,7 @@ CalibrationNode::~CalibrationNode() {
     serving_imu_ = false;
     imu_thread_.join();
   }
-  temperature_sub_.shutdown();
+  for (ros::Subscriber& sub : channel_subs_) sub.shutdown();
   command_sub_.shutdown();
   timer_.stop();
   {
@@ -150,11 +154,10 @@ void CalibrationNode::handle_imu(const sensor_msgs::Imu& msg) {
   if (!actions.empty()) carry_out(actions, nullptr);
 }
 
-void CalibrationNode::handle_temperature(const sensor_msgs::Temperature& msg) {
+void CalibrationNode::handle_channel_sample(const core::ChannelSample& reading) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   last_activity_ = ros::WallTime::now();
-  const core::RunActions actions =
-      run_.on_temperature(core::TemperatureSample{msg.header.stamp.toSec(), msg.temperature});
+  const core::RunActions actions = run_.on_channel_sample(reading);
   if (!actions.empty()) carry_out(actions, nullptr);
 }
 

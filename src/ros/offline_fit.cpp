@@ -31,7 +31,17 @@
 #include "accel_intrinsics/ros/scripts.h"
 
 namespace accel_intrinsics {
+std::string channel_topic_option(std::size_t channel) {
+  return std::string("--") + core::kChannels[channel].name + "-topic";
+}
+
 namespace {
+
+bool any_channel_topic_given(const OfflineFitArguments& args) {
+  for (bool given : args.channel_topic_given)
+    if (given) return true;
+  return false;
+}
 
 // Accepted local gravity, m/s^2, exclusive bounds: the calibration node's
 // (config/calibration.yaml); Earth's surface spans 9.76..9.84, and unit slips (cm/s^2, or 1 for
@@ -153,6 +163,31 @@ Input read_samples_input(const OfflineFitArguments& args) {
 }
 
 // Why a bag run is incomplete, and anything else worth a look.
+// A retried position holds the dwell the fault cut short and the one measured again; the node
+// keeps the second only, and so does offline_fit (core::find_remeasured_rows), saying so.
+void drop_remeasured_dwells(Input* input) {
+  const core::SupersededRows superseded = core::find_remeasured_rows(input->table);
+  if (superseded.rows.empty()) return;
+  std::ostringstream s;
+  s << superseded.rows.size() << (superseded.rows.size() == 1 ? " dwell" : " dwells")
+    << " measured again right after at the same position (a retry: the earlier one was cut short) "
+       "dropped, as the calibration node drops them:";
+  for (std::size_t i : superseded.rows) {
+    const core::DwellRecord& row = input->table.rows[i];
+    s << " phase " << core::phase_name(row.phase) << " step " << row.step << " at t=" << std::fixed
+      << std::setprecision(3) << row.t_start_s << ";";
+  }
+  if (superseded.by_samples > 0) {
+    s << " " << superseded.by_samples
+      << " of them at the turn of a two-way sweep, where the commands do not tell which visit "
+         "was cut short: the one(s) with the fewest samples";
+  }
+  std::string text = s.str();
+  if (text.back() == ';') text.pop_back();
+  input->context.warnings.push_back(text);
+  input->table = core::without_rows(std::move(input->table), superseded.rows);
+}
+
 void check_bag_run(const BagInputStats& st, const core::PositionTable& table, Input* input) {
   const core::AssemblerCounters& c = st.counters;
   std::vector<std::string>& warnings = input->context.warnings;
@@ -212,7 +247,7 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
   BagInputOptions options;
   options.imu_topic = args.imu_topic;
   options.command_topic = args.command_topic;
-  options.temperature_topic = args.temperature_topic;
+  options.channel_topics = args.channel_topics;
   options.assembler.settle_discard_s = args.settle_discard_s;
   options.progress_stream = &err;
   options.imu_time_offset_s = args.imu_time_offset_s;
@@ -249,9 +284,12 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
     throw Failure{kOfflineFitBadInput, "no IMU messages on '" + st.imu_topic + "' in " + st.path};
   }
   if (!st.topic_note.empty()) err << kOfflineFitProgram << ": note: " << st.topic_note << std::endl;
-  if (args.temperature_topic_given && st.temperature_topic.empty()) {
-    throw Failure{kOfflineFitBadInput,
-                  "no temperature topic '" + args.temperature_topic + "' in " + st.path};
+  for (const core::ChannelSpec& spec : core::kChannels) {
+    const std::size_t c = core::channel_index(spec.id);
+    if (args.channel_topic_given[c] && st.channel_topics[c].empty()) {
+      throw Failure{kOfflineFitBadInput, std::string("no ") + spec.name + " topic '" +
+                                             args.channel_topics[c] + "' in " + st.path};
+    }
   }
   // One clock, before anything is fitted: dwells on a shifted clock are garbage.
   if (options.clock_check && !tumble) {
@@ -271,6 +309,7 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
 
   input.from_bag = true;
   input.table = std::move(run.table);
+  if (!tumble) drop_remeasured_dwells(&input);
   if (tumble) {
     // A bag with the IMU topic alone: a hand tumble, rests found in the stream.
     std::vector<core::ImuSample> samples;
@@ -350,8 +389,12 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
     summary << "no gimbal commands: a hand tumble, " << input.table.rows.size() << " rests found, ";
   else
     summary << st.command_messages << " commands on " << st.command_topic << ", ";
-  if (!st.temperature_topic.empty())
-    summary << st.temperature_messages << " temperatures on " << st.temperature_topic << ", ";
+  for (const core::ChannelSpec& spec : core::kChannels) {
+    const std::size_t c = core::channel_index(spec.id);
+    if (!st.channel_topics[c].empty())
+      summary << st.channel_messages[c] << " " << spec.name << "s on " << st.channel_topics[c]
+              << ", ";
+  }
   summary << std::fixed << std::setprecision(1) << bag.duration_s << " s)";
   description.summary = summary.str();
   input.context.input = description;
@@ -417,7 +460,7 @@ void check_command_line(const OfflineFitArguments& args) {
   }
   if (!args.samples.empty() &&
       (args.imu_time_offset_given || args.skip_clock_check || args.imu_topic_given ||
-       args.command_topic_given || args.temperature_topic_given || args.settle_discard_given)) {
+       args.command_topic_given || any_channel_topic_given(args) || args.settle_discard_given)) {
     throw Failure{kOfflineFitBadCommandLine,
                   "--imu-time-offset, --skip-clock-check, --settle-discard and the topic options "
                   "apply to --bag only"};
@@ -435,9 +478,13 @@ void check_command_line(const OfflineFitArguments& args) {
     throw Failure{kOfflineFitBadCommandLine, "--imu-time-offset must be a number of seconds"};
   }
   if (!args.csv.empty() &&
-      (args.imu_topic_given || args.command_topic_given || args.temperature_topic_given)) {
-    throw Failure{kOfflineFitBadCommandLine,
-                  "--imu-topic, --command-topic and --temperature-topic apply to --bag only"};
+      (args.imu_topic_given || args.command_topic_given || any_channel_topic_given(args))) {
+    std::vector<std::string> names{"--imu-topic", "--command-topic"};
+    for (std::size_t c = 0; c < core::kChannelCount; ++c) names.push_back(channel_topic_option(c));
+    std::string list;
+    for (std::size_t i = 0; i < names.size(); ++i)
+      list += (i == 0 ? "" : i + 1 == names.size() ? " and " : ", ") + names[i];
+    throw Failure{kOfflineFitBadCommandLine, list + " apply to --bag only"};
   }
   if (!args.csv.empty() && args.settle_discard_given) {
     throw Failure{

@@ -29,11 +29,14 @@ bool parse_offline_fit_arguments(const std::vector<std::string>& arguments,
                  "recorded run (rosbag); repeat it, or name a directory, for a run split over "
                  "several bags")
       ->type_name("FILE|DIR");
+  std::string channel_columns;
+  for (const core::ChannelSpec& spec : core::kChannels)
+    channel_columns += std::string("; optionally ,") + spec.column + ": dwell " + spec.name +
+                       " in " + spec.unit;
   app.add_option("--csv", args->csv,
                  "position table: " + std::string(core::kPositionTableHeader) +
                      " (optionally" + core::kDirectionColumns +
-                     ": known orientations, phase '-'; optionally" +
-                     core::kTemperatureColumn + ": dwell temperature in C)");
+                     ": known orientations, phase '-'" + channel_columns + ")");
   app.add_option("--samples", args->samples,
                  "raw samples of a hand tumble: t,x,y,z a line (seconds, then the three outputs in "
                  "any unit), comma or whitespace, header optional; rests are found in the stream")
@@ -53,11 +56,15 @@ bool parse_offline_fit_arguments(const std::vector<std::string>& arguments,
   auto* command = app.add_option("--command-topic", args->command_topic,
                                  "gimbal command topic in the bag (accel_intrinsics/GimbalCommand)")
                       ->capture_default_str();
-  auto* temperature =
-      app.add_option("--temperature-topic", args->temperature_topic,
-                     "DUT temperature topic in the bag (sensor_msgs/Temperature, deg C; used when "
-                     "present, required when given)")
-          ->capture_default_str();
+  core::PerChannel<CLI::Option*> channel_topic;
+  for (const core::ChannelSpec& spec : core::kChannels) {
+    const std::size_t c = core::channel_index(spec.id);
+    channel_topic[c] = app.add_option(channel_topic_option(c), args->channel_topics[c],
+                                      std::string("DUT ") + spec.name + " topic in the bag (" +
+                                          spec.message_type + ", " + spec.unit +
+                                          "; used when present, required when given)")
+                           ->capture_default_str();
+  }
   auto* gravity = app.add_option("--gravity", args->gravity, "local gravity g in m/s^2")
                       ->capture_default_str();
   app.add_option("--model", args->model, "fit model: joint or eq4")->capture_default_str();
@@ -118,7 +125,8 @@ bool parse_offline_fit_arguments(const std::vector<std::string>& arguments,
   }
   args->imu_topic_given = imu->count() > 0;
   args->command_topic_given = command->count() > 0;
-  args->temperature_topic_given = temperature->count() > 0;
+  for (std::size_t c = 0; c < core::kChannelCount; ++c)
+    args->channel_topic_given[c] = channel_topic[c]->count() > 0;
   args->settle_discard_given = settle->count() > 0;
   args->imu_time_offset_given = offset->count() > 0;
   args->gravity_given = gravity->count() > 0;

@@ -196,3 +196,98 @@ TEST(PositionTableGeometry, ApproachesMatchTheScheduleWithClosingPositionAndTwoW
     }
   }
 }
+
+// The channel columns (core::kChannels) follow f_x,f_y,f_z in any order; an unknown column or one
+// given twice is an error naming it; the writer adds a channel's column when a row has a value.
+TEST(PositionTableCsv, ChannelColumnsAreReadByNameAndWrittenWhenARowHasAValue) {
+  const std::string base = core::kPositionTableHeader;
+  std::istringstream in(base + ",temperature_c\nx,0,0,1,2,10,0,0,9.8,0.1,0.1,0.1,\n" +
+                        "x,1,0.5,3,4,10,0,0,9.8,0.1,0.1,0.1,23.5\n");
+  const core::PositionTable table = core::read_position_table(in);
+  ASSERT_EQ(table.rows.size(), 2u);
+  EXPECT_FALSE(table.rows[0].has_temperature());
+  EXPECT_EQ(table.rows[1].temperature_c, 23.5);
+  EXPECT_TRUE(core::columns_needed(table).channels[core::channel_index(core::Channel::Temperature)]);
+  EXPECT_FALSE(core::columns_needed(table.rows[0]).channels[0]);
+
+  std::ostringstream out;
+  core::write_position_table(out, table);
+  EXPECT_EQ(out.str().substr(0, out.str().find('\n')), base + ",temperature_c");
+  std::istringstream back(out.str());
+  EXPECT_EQ(core::read_position_table(back).rows[1].temperature_c, 23.5);
+
+  EXPECT_NE(expect_error(base + ",humidity\n").find("unknown column 'humidity'"), std::string::npos);
+  EXPECT_NE(expect_error(base + ",temperature_c,temperature_c\n").find("twice"), std::string::npos);
+  EXPECT_NE(expect_error(base + ",temperature_c,f_x,f_y,f_z\n").find("unknown column 'f_x'"),
+            std::string::npos);
+}
+
+namespace {
+core::DwellRecord visit(core::Phase phase, std::uint32_t step, std::uint64_t n = 100) {
+  core::DwellRecord r;
+  r.phase = phase;
+  r.step = step;
+  r.angle_rad = 2.0 * core::kPi * step / 4.0;
+  r.n = n;
+  return r;
+}
+std::vector<std::size_t> superseded(const std::vector<core::DwellRecord>& rows) {
+  core::PositionTable table;
+  table.rows = rows;
+  return core::find_remeasured_rows(table).rows;
+}
+}  // namespace
+
+// A retried position (the same (phase, step) twice in a row) keeps the dwell measured again; the
+// turn of a two-way sweep (up to step 3, down from step 3) is not a retry; a retry there leaves
+// the visits with the most samples.
+TEST(PositionTableGeometry, RemeasuredDwellsOfARetriedPositionAreFound) {
+  using core::Phase;
+  // One-way sweep, step 2 of phase x cut short and measured again.
+  EXPECT_EQ(superseded({visit(Phase::X, 0), visit(Phase::X, 1), visit(Phase::X, 2, 7),
+                        visit(Phase::X, 2), visit(Phase::X, 3), visit(Phase::Y, 0)}),
+            (std::vector<std::size_t>{2}));
+  // Retried twice: both earlier visits.
+  EXPECT_EQ(superseded({visit(Phase::Y, 0, 3), visit(Phase::Y, 0, 5), visit(Phase::Y, 0),
+                        visit(Phase::Y, 1)}),
+            (std::vector<std::size_t>{0, 1}));
+  // The last step of one phase and the first of the next are different positions.
+  EXPECT_TRUE(superseded({visit(Phase::X, 3), visit(Phase::Y, 3), visit(Phase::Y, 2)}).empty());
+  // Two-way sweep: 0 1 2 3 | 3 2 1 0, nothing superseded.
+  std::vector<core::DwellRecord> two_way;
+  for (std::uint32_t s : {0u, 1u, 2u, 3u, 3u, 2u, 1u, 0u}) two_way.push_back(visit(Phase::Z, s));
+  EXPECT_TRUE(superseded(two_way).empty());
+  // ... with a retry on the way down (step 1) and one at the turn (the up visit cut short).
+  std::vector<core::DwellRecord> retried = two_way;
+  retried.insert(retried.begin() + 6, visit(Phase::Z, 1, 9));  // before the last 1
+  retried.insert(retried.begin() + 3, visit(Phase::Z, 3, 4));  // before the first 3
+  // rows: 0 1 2 3(4) 3 3 2 1(9) 1 0
+  EXPECT_EQ(superseded(retried), (std::vector<std::size_t>{3, 7}));
+  // With a closing position (step 4) the return sweep's first visit of step 3 follows step 4: a
+  // repeat there is a retry, not the turn.
+  EXPECT_EQ(superseded({visit(Phase::X, 3), visit(Phase::X, 4), visit(Phase::X, 3, 2),
+                        visit(Phase::X, 3), visit(Phase::X, 2)}),
+            (std::vector<std::size_t>{2}));
+  // Rows of a known direction are never taken for a repeat.
+  core::DwellRecord known = visit(Phase::X, 0);
+  known.has_direction = true;
+  EXPECT_TRUE(superseded({known, known}).empty());
+}
+
+// A table without the superseded rows gives ApproachTracker the sweep as the schedule has it.
+TEST(PositionTableGeometry, ApproachesOfARetriedTwoWayRunMatchTheSweepOnceTheRepeatIsDropped) {
+  using core::Phase;
+  core::PositionTable table;
+  for (std::uint32_t s : {0u, 1u, 1u, 2u, 3u, 3u, 2u, 1u, 0u}) table.rows.push_back(visit(Phase::Y, s));
+  const core::SupersededRows found = core::find_remeasured_rows(table);
+  ASSERT_EQ(found.rows, (std::vector<std::size_t>{1}));
+  const core::PositionTable kept = core::without_rows(table, found.rows);
+  ASSERT_EQ(kept.rows.size(), 8u);
+  std::vector<int> approaches;
+  for (const core::DwellGeometry& g : core::dwell_geometries(kept)) approaches.push_back(g.approach);
+  EXPECT_EQ(approaches, (std::vector<int>{+1, +1, +1, +1, -1, -1, -1, -1}));
+  // Kept as it was, the repeat would have been taken as a turn of the sweep.
+  std::vector<int> naive;
+  for (const core::DwellGeometry& g : core::dwell_geometries(table)) naive.push_back(g.approach);
+  EXPECT_EQ(naive[2], -1);
+}

@@ -184,8 +184,8 @@ TEST(Temperature, AssemblerRecordsTheMeanReadingOfEachDwell) {
     ASSERT_TRUE(row.has_temperature());
     EXPECT_NEAR(row.temperature_c, sum / n, 1e-12);
   }
-  EXPECT_EQ(assembler.counters().temperatures_used, used);
-  EXPECT_EQ(assembler.counters().temperatures_dropped, rec.temperatures.size() - used);
+  EXPECT_EQ(assembler.counters().channel_used[channel_index(Channel::Temperature)], used);
+  EXPECT_EQ(assembler.counters().channel_dropped[channel_index(Channel::Temperature)], rec.temperatures.size() - used);
 }
 
 // The calibration node's core: temperatures on the IMU's clock (imu_time_offset_s shifts them
@@ -215,7 +215,7 @@ TEST(Temperature, CalibrationRunRecordsDwellTemperatures) {
     while (k < rec.temperatures.size() && rec.temperatures[k].stamp_s <= sample.stamp_s) {
       TemperatureSample shifted = rec.temperatures[k++];
       shifted.stamp_s -= offset_s;
-      take(run.on_temperature(shifted));
+      take(run.on_channel_sample(channel_sample(shifted)));
     }
     ImuSample shifted = sample;
     shifted.stamp_s -= offset_s;

@@ -79,7 +79,8 @@ TEST(Checkpoint, TornLastLineIsDroppedAndTheRunContinuesAfterTheCompleteRows) {
 }
 
 // A run with temperatures checkpoints the temperature_c column and restores it; a checkpoint
-// without the column is continued without it (the file stays one table).
+// without the column continued by a row with a temperature gains the column (the file stays one
+// table, the earlier rows without a value).
 TEST(Checkpoint, TemperaturesAreKeptAndAnOldTableIsContinuedInItsOwnColumns) {
   TempDir dir;
   core::CheckpointState state;
@@ -126,7 +127,41 @@ TEST(Checkpoint, TemperaturesAreKeptAndAnOldTableIsContinuedInItsOwnColumns) {
   const auto restored = CheckpointFiles(old_dir.path(), "o_").load();
   ASSERT_TRUE(restored.has_value());  // still one readable table
   ASSERT_EQ(restored->table.rows.size(), 2u);
-  EXPECT_FALSE(restored->table.rows[1].has_temperature());
+  EXPECT_FALSE(restored->table.rows[0].has_temperature());
+  EXPECT_EQ(restored->table.rows[1].temperature_c, 30.0);
+}
+
+// A channel that starts late (the first dwell had no temperature reading, the later ones do)
+// is kept: the table gains its column when the first value comes, in the same run and in a run
+// continued from the checkpoint.
+TEST(Checkpoint, AChannelThatStartsLateIsKept) {
+  TempDir dir;
+  core::CheckpointState state;
+  state.steps = 6;
+  {
+    CheckpointFiles files(dir.path(), "late_");
+    files.append_row(row(core::Phase::Z, 0));  // no reading yet
+    core::DwellRecord r = row(core::Phase::Z, 1);
+    r.temperature_c = 24.25;
+    files.append_row(r);
+    files.write_state(state);
+  }
+  CheckpointFiles files(dir.path(), "late_");
+  const auto restored = files.load();
+  ASSERT_TRUE(restored.has_value());
+  ASSERT_EQ(restored->table.rows.size(), 2u);
+  EXPECT_FALSE(restored->table.rows[0].has_temperature());
+  EXPECT_EQ(restored->table.rows[1].temperature_c, 24.25);
+  EXPECT_EQ(restored->table.rows[1].mean, row(core::Phase::Z, 1).mean);
+  core::DwellRecord r = row(core::Phase::Z, 2);
+  r.temperature_c = 24.5;
+  files.append_row(r);
+  const auto again = CheckpointFiles(dir.path(), "late_").load();
+  ASSERT_TRUE(again.has_value());
+  ASSERT_EQ(again->table.rows.size(), 3u);
+  EXPECT_FALSE(again->table.rows[0].has_temperature());
+  EXPECT_EQ(again->table.rows[1].temperature_c, 24.25);
+  EXPECT_EQ(again->table.rows[2].temperature_c, 24.5);
 }
 
 // Every field of the state file survives the round trip, each with a value of its own (done and

@@ -15,6 +15,7 @@
 
 #include "accel_intrinsics/core/simulator.h"
 #include "accel_intrinsics/ros/conversions.h"
+#include "../support/bag_writer.h"
 #include "offline_compare.h"
 
 namespace ai = accel_intrinsics;
@@ -44,25 +45,9 @@ void write_simulated_bag(const std::string& path, double tail_s) {
     s.stamp_s = t;
     rec.samples.push_back(s);
   }
-  rosbag::Bag bag;
-  bag.open(path, rosbag::bagmode::Write);
-  std::size_t c = 0;
-  for (const core::ImuSample& s : rec.samples) {
-    while (c < rec.commands.size() && rec.commands[c].stamp_s <= s.stamp_s) {
-      core::GimbalEvent e = rec.commands[c++];
-      e.stamp_s += 1000.0;
-      bag.write("/gimbal/command", ros::Time(e.stamp_s), ai::to_msg(e));
-    }
-    core::ImuSample shifted = s;
-    shifted.stamp_s += 1000.0;
-    bag.write("/imu/data_raw", ros::Time(shifted.stamp_s), ai::to_msg(shifted, "dut"));
-  }
-  while (c < rec.commands.size()) {  // DONE, when the bag ends with it
-    core::GimbalEvent e = rec.commands[c++];
-    e.stamp_s += 1000.0;
-    bag.write("/gimbal/command", ros::Time(e.stamp_s), ai::to_msg(e));
-  }
-  bag.close();
+  ai::test_support::BagWriter bag(path);
+  bag.stamp_offset_s = 1000.0;
+  bag.recording(rec);
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "accel_intrinsics/GimbalCommand.h"
+#include "../support/bag_writer.h"
 #include "offline_compare.h"
 #include "stand_checks.h"
 
@@ -15,8 +16,8 @@ namespace {
 // `rosbag record` would (receipt time as the bag time; offline_fit reads header stamps).
 class RigRecorder {
  public:
-  RigRecorder(ros::NodeHandle& nh, const std::string& ns, const std::string& path) : ns_(ns) {
-    bag_.open(path, rosbag::bagmode::Write);
+  RigRecorder(ros::NodeHandle& nh, const std::string& ns, const std::string& path)
+      : ns_(ns), bag_(path) {
     command_sub_ = nh.subscribe<accel_intrinsics::GimbalCommand>(
         stand_checks::join_ns(ns, "gimbal/command"), 1000,
         [this](const accel_intrinsics::GimbalCommand::ConstPtr& msg) {
@@ -47,7 +48,7 @@ class RigRecorder {
   }
 
   std::string ns_;
-  rosbag::Bag bag_;
+  accel_intrinsics::test_support::BagWriter bag_;
   ros::Subscriber command_sub_, imu_sub_;
   bool done_ = false;
   std::size_t imu_messages_ = 0;

@@ -19,6 +19,7 @@
 #include "accel_intrinsics/core/simulator.h"
 #include "accel_intrinsics/ros/conversions.h"
 #include "accel_intrinsics/ros/offline_fit.h"
+#include "../support/bag_writer.h"
 #include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
@@ -89,18 +90,19 @@ std::vector<Message> messages(const core::Recording& rec, const BagRecipe& r) {
 void write_bags(const std::vector<std::string>& files, const std::vector<Message>& msgs,
                 const BagRecipe& r) {
   const double t0 = msgs.front().receive_s, t1 = msgs.back().receive_s;
-  std::vector<std::unique_ptr<rosbag::Bag>> bags;
+  std::vector<std::unique_ptr<ai::test_support::BagWriter>> bags;
   for (const std::string& f : files) {
-    bags.emplace_back(new rosbag::Bag);
-    bags.back()->open(f, rosbag::bagmode::Write);
+    bags.emplace_back(new ai::test_support::BagWriter(f));
+    bags.back()->imu_topic = r.imu_topic;
+    bags.back()->frame_id = r.frame_id;
   }
   for (const Message& m : msgs) {
     auto i = static_cast<std::size_t>((m.receive_s - t0) / (t1 - t0 + 1e-9) * files.size());
     i = std::min(i, files.size() - 1);
     if (m.is_command) {
-      bags[i]->write("/gimbal/command", ros::Time(m.receive_s), ai::to_msg(m.command));
+      bags[i]->command(m.command, m.receive_s);
     } else {
-      bags[i]->write(r.imu_topic, ros::Time(m.receive_s), ai::to_msg(m.sample, r.frame_id));
+      bags[i]->sample(m.sample, m.receive_s);
     }
   }
   for (auto& b : bags) b->close();

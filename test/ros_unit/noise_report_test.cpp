@@ -1,6 +1,7 @@
 // noise_report in process: a CSV and a bag of simulated static samples with known white noise
 // give N within 5 %; the JSON, kalibr YAML and PNG appear; bad input is one line and no file.
 #include "accel_intrinsics/ros/noise_report.h"
+#include "../support/bag_writer.h"
 #include "../support/test_files.h"
 
 #include <gtest/gtest.h>
@@ -85,17 +86,12 @@ TEST(NoiseReport, BagGivesTheSameAsCsv) {
   const std::string bag_path = dir.file("static.bag");
   const std::string csv = dir.file("samples.csv");
   {
-    rosbag::Bag bag(bag_path, rosbag::bagmode::Write);
+    ai::test_support::BagWriter bag(bag_path);
     std::ofstream out(csv);
     out << "t,u,v,w\n";
     out.precision(17);
     simulate(20000, [&](double t, const double* v) {
-      sensor_msgs::Imu m;
-      m.header.stamp = ros::Time(t);
-      m.linear_acceleration.x = v[0];
-      m.linear_acceleration.y = v[1];
-      m.linear_acceleration.z = v[2];
-      bag.write("/imu/data_raw", m.header.stamp, m);
+      const sensor_msgs::Imu m = bag.sample(t, Eigen::Vector3d(v[0], v[1], v[2]));
       out << m.header.stamp.toSec() << ',' << v[0] << ',' << v[1] << ',' << v[2] << '\n';
     });
   }

@@ -1,5 +1,5 @@
-// offline_fit end to end, without a roscore: the test writes bags with rosbag::Bag and CSV files,
-// runs offline_fit in process (run_offline_fit of ros/offline_fit.h, with the arguments the
+// offline_fit end to end, without a roscore: the test writes bags (test_support::BagWriter) and
+// CSV files, runs offline_fit in process (run_offline_fit of ros/offline_fit.h, with the arguments the
 // command line would give) and checks exit status, stderr and the JSON/CSV it writes. A few smoke
 // tests run the built binary (--help, command-line errors, one bag and one CSV run); it is found
 // next to this test binary (catkin puts both in devel/lib/accel_intrinsics) or through the
@@ -35,6 +35,7 @@
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/bag_input.h"
 #include "accel_intrinsics/ros/conversions.h"
+#include "../support/bag_writer.h"
 #include "../support/statistical_bounds.h"
 
 namespace ai = accel_intrinsics;
@@ -145,47 +146,16 @@ ToolRun run_tool(const std::vector<std::string>& args, const TempDir&) {
 // ---- writing bags
 // ---------------------------------------------------------------------------------
 
-sensor_msgs::Imu imu_msg(double stamp, const Eigen::Vector3d& r) {
-  sensor_msgs::Imu msg;
-  msg.header.stamp.fromSec(stamp);
-  msg.header.frame_id = "dut_accelerometer_frame";  // a frame id the fast reader must skip
-  msg.orientation.w = 1.0;
-  msg.orientation_covariance[0] = -1.0;
-  msg.angular_velocity.x = 123.0;  // junk around linear_acceleration, never to be read as it
-  msg.angular_velocity_covariance[0] = -1.0;
-  msg.linear_acceleration.x = r.x();
-  msg.linear_acceleration.y = r.y();
-  msg.linear_acceleration.z = r.z();
-  for (int i = 0; i < 9; ++i) msg.linear_acceleration_covariance[i] = 1e-6 * (i + 1);
-  return msg;
-}
-
-ai::GimbalCommand command_msg(double stamp, int phase, std::uint32_t step, std::uint32_t steps,
-                              double angle, std::uint8_t state) {
-  ai::GimbalCommand msg;
-  msg.header.stamp.fromSec(stamp);
-  msg.phase = static_cast<std::uint8_t>(phase);
-  msg.step = step;
-  msg.steps = steps;
-  msg.angle = angle;
-  msg.state = state;
-  return msg;
-}
-
-// Messages are written with a bag (receive) time 1 ms after their stamp, as a recorder would.
-struct BagWriter {
-  rosbag::Bag bag;
-  std::string imu_topic = "/imu/data_raw";
-  std::string command_topic = "/gimbal/command";
-  explicit BagWriter(const std::string& path) { bag.open(path, rosbag::bagmode::Write); }
-  void imu(double t, const Eigen::Vector3d& r) {
-    bag.write(imu_topic, ros::Time(t + 0.001), imu_msg(t, r));
+// Messages are written with a bag (receive) time 1 ms after their stamp, as a recorder would, and
+// IMU messages carry fields around linear_acceleration (and a frame id) the readers must skip.
+class HandBagWriter : public ai::test_support::BagWriter {
+ public:
+  explicit HandBagWriter(const std::string& path) : BagWriter(path) {
+    receive_delay_s = 0.001;
+    padded_imu = true;
+    frame_id = "dut_accelerometer_frame";
   }
-  void command(double t, int phase, std::uint32_t step, std::uint32_t steps, double angle,
-               std::uint8_t state) {
-    bag.write(command_topic, ros::Time(t + 0.001),
-              command_msg(t, phase, step, steps, angle, state));
-  }
+  void imu(double t, const Eigen::Vector3d& r) { sample(t, r); }
 };
 
 // The device of the hand-made runs: R = S g f + O.
@@ -246,7 +216,7 @@ struct HandRun {
 // sample exactly at that stamp (kept: the dwell is [SETTLED, next MOVING)); 4 more samples 0.1 s
 // apart; a sample exactly at the next MOVING or DONE stamp (dropped); after DONE, one more
 // (dropped). The samples are the model value plus -2d, -d, 0, +d, +2d with d = 0.01 per axis.
-HandRun write_hand_run(BagWriter& writer, const HandRunOptions& o) {
+HandRun write_hand_run(HandBagWriter& writer, const HandRunOptions& o) {
   HandRun run;
   const Eigen::Matrix3d S = device_S();
   const Eigen::Vector3d O = device_O();
@@ -302,13 +272,13 @@ HandRun write_hand_run(BagWriter& writer, const HandRunOptions& o) {
 }
 
 HandRun make_hand_bag(const std::string& path, const HandRunOptions& o = {}) {
-  BagWriter writer(path);
+  HandBagWriter writer(path);
   if (!o.ns.empty()) {
     writer.imu_topic = o.ns + "/imu/data_raw";
     writer.command_topic = o.ns + "/gimbal/command";
   }
   HandRun run = write_hand_run(writer, o);
-  writer.bag.close();
+  writer.close();
   return run;
 }
 
@@ -317,25 +287,8 @@ HandRun make_hand_bag(const std::string& path, const HandRunOptions& o = {}) {
 void write_recording_bag(const std::string& path, const core::Recording& rec,
                          const std::function<void(const core::GimbalEvent&)>& on_command = {},
                          const std::function<void(const sensor_msgs::Imu&)>& on_sample = {}) {
-  rosbag::Bag bag;
-  bag.open(path, rosbag::bagmode::Write);
-  std::size_t c = 0, s = 0;
-  while (c < rec.commands.size() || s < rec.samples.size()) {
-    const bool take_command =
-        s == rec.samples.size() ||
-        (c < rec.commands.size() && rec.commands[c].stamp_s <= rec.samples[s].stamp_s);
-    if (take_command) {
-      const auto& e = rec.commands[c++];
-      bag.write("/gimbal/command", ros::Time(e.stamp_s), ai::to_msg(e));
-      if (on_command) on_command(e);
-    } else {
-      const auto& e = rec.samples[s++];
-      const sensor_msgs::Imu msg = ai::to_msg(e, "dut");
-      bag.write("/imu/data_raw", ros::Time(e.stamp_s), msg);
-      if (on_sample) on_sample(msg);
-    }
-  }
-  bag.close();
+  ai::test_support::BagWriter writer(path);
+  writer.recording(rec, on_command, on_sample);
 }
 
 json load_json(const std::string& path) {
@@ -607,14 +560,14 @@ TEST(OfflineFit, NamespacedTopicsResolve) {
 TEST(OfflineFit, TwoNamespacesNeedAChoice) {
   TempDir dir;
   {
-    BagWriter writer(dir.file("two.bag"));
+    HandBagWriter writer(dir.file("two.bag"));
     writer.imu_topic = "/stand1/imu/data_raw";
     writer.command_topic = "/stand1/gimbal/command";
     write_hand_run(writer, {});
     writer.imu_topic = "/stand2/imu/data_raw";
     writer.command_topic = "/stand2/gimbal/command";
     write_hand_run(writer, {});
-    writer.bag.close();
+    writer.close();
   }
   ToolRun r = run_tool({"--bag", dir.file("two.bag")}, dir);
   expect_single_line_error(r, "ambiguous");
@@ -761,9 +714,9 @@ TEST(OfflineFitBadInput, MissingTopicIsNamedAndBagTopicsListed) {
   // A bag with IMU data only is a hand tumble (DESIGN.md section 11); one second of the device
   // lying still has one rest, far too few.
   {
-    BagWriter writer(dir.file("imu_only.bag"));
+    HandBagWriter writer(dir.file("imu_only.bag"));
     for (int i = 0; i < 100; ++i) writer.imu(100 + 0.01 * i, Eigen::Vector3d(0, 0, kG));
-    writer.bag.close();
+    writer.close();
   }
   r = run_tool({"--bag", dir.file("imu_only.bag"), "--rest-min-s", "0.2"}, dir);
   EXPECT_EQ(r.status, 1);
@@ -1018,20 +971,20 @@ TEST(BagInput, FastImuReaderMatchesFullMessage) {
   // One dwell around each sample, so each dwell mean is that sample as offline_fit read it.
   std::vector<sensor_msgs::Imu> written;
   {
-    rosbag::Bag b;
-    b.open(dir.file("imu2.bag"), rosbag::bagmode::Write);
+    HandBagWriter b(dir.file("imu2.bag"));
+    b.receive_delay_s = 0.0;
     for (int i = 0; i < 50; ++i) {
       const double t = 10.0 + 0.01 * i;
-      sensor_msgs::Imu msg = imu_msg(t, Eigen::Vector3d(0.1 * i, -3.25 + i, 9.5 - 0.003 * i));
+      sensor_msgs::Imu msg =
+          b.imu_message(core::ImuSample{t, Eigen::Vector3d(0.1 * i, -3.25 + i, 9.5 - 0.003 * i)});
       msg.header.frame_id = std::string(static_cast<std::size_t>(i % 7), 'f');  // varying lengths
       msg.header.seq = i;
-      b.write("/gimbal/command", ros::Time(t - 0.004), command_msg(t - 0.004, 0, i, 50, 0.0, 0));
-      b.write("/gimbal/command", ros::Time(t - 0.002), command_msg(t - 0.002, 0, i, 50, 0.0, 1));
-      b.write("/imu/data_raw", ros::Time(t), msg);
+      b.command(t - 0.004, 0, i, 50, 0.0, 0);
+      b.command(t - 0.002, 0, i, 50, 0.0, 1);
+      b.write(b.imu_topic, t, msg);
       written.push_back(msg);
     }
-    b.write("/gimbal/command", ros::Time(11.0), command_msg(11.0, 0, 49, 50, 0.0, 2));
-    b.close();
+    b.command(11.0, 0, 49, 50, 0.0, 2);
   }
   const ai::BagRun run = ai::read_bag(dir.file("imu2.bag"));
   ASSERT_EQ(run.table.rows.size(), written.size());
@@ -1110,10 +1063,10 @@ TEST(BagInput, ChunkScanEqualsView) {
       << scan_error;
   EXPECT_EQ(scan_error, view_error);
   for (auto compression : {rosbag::compression::LZ4, rosbag::compression::BZ2}) {
-    BagWriter writer(dir.file("packed.bag"));
-    writer.bag.setCompression(compression);
+    HandBagWriter writer(dir.file("packed.bag"));
+    writer.bag().setCompression(compression);
     write_hand_run(writer, nan);
-    writer.bag.close();
+    writer.close();
     const ai::BagRun packed = ai::read_bag(dir.file("packed.bag"));
     EXPECT_EQ(packed.stats.reader, "rosbag::View");
     expect_same_run(packed, ai::read_bag(dir.file("nan.bag")));

@@ -1,5 +1,5 @@
-// offline_fit with a DUT temperature topic (DESIGN.md section 10): a bag written here by hand with
-// rosbag::Bag (not by our simulator) holds gimbal commands, IMU samples and sensor_msgs/Temperature
+// offline_fit with a DUT temperature topic (DESIGN.md section 10): a bag written here by hand
+// (test_support::BagWriter, not from our simulator) holds gimbal commands, IMU samples and sensor_msgs/Temperature
 // readings; offline_fit must put the mean reading of each dwell into the position table's
 // temperature_c column, computed here independently from the readings written.
 #include <gtest/gtest.h>
@@ -22,6 +22,7 @@
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/ros/bag_input.h"
 #include "accel_intrinsics/ros/offline_fit.h"
+#include "../support/bag_writer.h"
 #include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
@@ -34,6 +35,7 @@ using accel_intrinsics::test_support::TempDir;
 
 constexpr double kG = 9.80665;
 constexpr double kPi = 3.14159265358979323846;
+constexpr std::size_t kTemperature = core::channel_index(core::Channel::Temperature);
 
 std::string first_line(const std::string& path) {
   std::ifstream in(path);
@@ -53,29 +55,17 @@ struct HandDwell {
 // The temperature climbs by 0.3 K per position with a wiggle; the readings differ per dwell.
 std::vector<HandDwell> write_run(const std::string& path, bool with_temperature,
                                  const std::string& temperature_topic = "/imu/temperature") {
-  rosbag::Bag bag;
-  bag.open(path, rosbag::bagmode::Write);
+  ai::test_support::BagWriter bag(path);
+  bag.receive_delay_s = 0.001;
+  bag.temperature_topic = temperature_topic;
   Eigen::Matrix3d S;
   S << 1.01, 0.02, -0.01, 0.0, 0.99, 0.03, 0.01, -0.02, 1.02;
   const Eigen::Vector3d O(0.1, -0.2, 0.05);
   auto command = [&](double t, int phase, std::uint32_t step, double angle, std::uint8_t state) {
-    ai::GimbalCommand msg;
-    msg.header.stamp.fromSec(t);
-    msg.phase = static_cast<std::uint8_t>(phase);
-    msg.step = step;
-    msg.steps = 6;
-    msg.angle = angle;
-    msg.state = state;
-    bag.write("/gimbal/command", ros::Time(t + 0.001), msg);
+    bag.command(t, phase, step, 6, angle, state);
   };
   auto temperature = [&](double t, double celsius) {
-    if (!with_temperature) return;
-    sensor_msgs::Temperature msg;
-    msg.header.stamp.fromSec(t);
-    msg.header.frame_id = "dut";
-    msg.temperature = celsius;
-    msg.variance = 0.01;
-    bag.write(temperature_topic, ros::Time(t + 0.001), msg);
+    if (with_temperature) bag.temperature(t, celsius);
   };
   std::vector<HandDwell> dwells;
   double t = 50.0;
@@ -95,14 +85,8 @@ std::vector<HandDwell> write_run(const std::string& path, bool with_temperature,
       d.settled = t + 0.5;
       d.end = t + 1.0;
       for (int i = 0; i < 5; ++i) {
-        sensor_msgs::Imu imu;
-        imu.header.stamp.fromSec(t + 0.5 + 0.1 * i);
-        imu.orientation_covariance[0] = -1.0;
-        imu.angular_velocity_covariance[0] = -1.0;
-        imu.linear_acceleration.x = R.x() + 0.01 * (i - 2);
-        imu.linear_acceleration.y = R.y() - 0.01 * (i - 2);
-        imu.linear_acceleration.z = R.z() + 0.005 * (i - 2);
-        bag.write("/imu/data_raw", ros::Time(t + 0.5 + 0.1 * i + 0.001), imu);
+        bag.sample(t + 0.5 + 0.1 * i,
+                   R + Eigen::Vector3d(0.01 * (i - 2), -0.01 * (i - 2), 0.005 * (i - 2)));
       }
       const double base = 21.0 + 0.3 * k + 0.1 * std::sin(k);
       std::vector<std::pair<double, double>> readings = {{t + 0.55, base}, {t + 0.85, base + 0.04}};
@@ -117,7 +101,6 @@ std::vector<HandDwell> write_run(const std::string& path, bool with_temperature,
   }
   command(t, 2, 5, 2.0 * kPi * 5 / 6.0, ai::GimbalCommand::DONE);
   temperature(t + 0.2, 99.0);  // after DONE: in no dwell
-  bag.close();
   return dwells;
 }
 
@@ -129,8 +112,8 @@ int run(const std::vector<std::string>& bags, const std::string& csv_out, std::s
   args.csv_out = csv_out;
   args.json_out = json_out;
   if (!temperature_topic.empty()) {
-    args.temperature_topic = temperature_topic;
-    args.temperature_topic_given = true;
+    args.channel_topics[kTemperature] = temperature_topic;
+    args.channel_topic_given[kTemperature] = true;
   }
   std::ostringstream out, err;
   const int status = ai::run_offline_fit(args, out, err);
@@ -148,7 +131,7 @@ TEST(OfflineFitTemperature, DwellMeansOfTheTemperatureTopicReachThePositionTable
       run({dir.file("run.bag")}, dir.file("table.csv"), &err, "", dir.file("result.json"), &out), 0)
       << err;
   EXPECT_EQ(first_line(dir.file("table.csv")),
-            std::string(core::kPositionTableHeader) + core::kTemperatureColumn);
+            std::string(core::kPositionTableHeader) + ",temperature_c");
   // The result states T_ref (the mean of the dwell means) and the range.
   double sum = 0.0, lo = 1e9, hi = -1e9;
   for (const HandDwell& d : dwells) {
@@ -187,16 +170,16 @@ TEST(OfflineFitTemperature, ChunkScanAndRosbagViewAgree) {
   const ai::BagRun view = ai::read_bag(dir.file("run.bag"), options);
   EXPECT_EQ(scan.stats.reader, "chunk scan");
   EXPECT_EQ(view.stats.reader, "rosbag::View");
-  EXPECT_EQ(scan.stats.temperature_topic, "/imu/temperature");
+  EXPECT_EQ(scan.stats.channel_topics[kTemperature], "/imu/temperature");
   std::uint64_t written = 1;                                           // after DONE
   for (const HandDwell& d : dwells) written += d.readings.size() + 1;  // + 1 while moving
-  EXPECT_EQ(scan.stats.temperature_messages, written);
-  EXPECT_EQ(view.stats.temperature_messages, scan.stats.temperature_messages);
+  EXPECT_EQ(scan.stats.channel_messages[kTemperature], written);
+  EXPECT_EQ(view.stats.channel_messages[kTemperature], scan.stats.channel_messages[kTemperature]);
   ASSERT_EQ(scan.table.rows.size(), view.table.rows.size());
   for (std::size_t i = 0; i < scan.table.rows.size(); ++i)
     EXPECT_EQ(scan.table.rows[i].temperature_c, view.table.rows[i].temperature_c) << i;
   // Readings while moving and after DONE are in no dwell: counted as dropped.
-  EXPECT_EQ(scan.stats.counters.temperatures_dropped, dwells.size() + 1);
+  EXPECT_EQ(scan.stats.counters.channel_dropped[kTemperature], dwells.size() + 1);
 }
 
 TEST(OfflineFitTemperature, NamespacedTemperatureTopicIsFound) {

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "../support/bag_writer.h"
 #include "../support/source_dir.h"
 #include "../support/statistical_bounds.h"
 #include "../support/test_files.h"
@@ -127,21 +128,15 @@ TEST(TumbleOffline, BagWithTheImuTopicAloneIsATumble) {
   o.start_time_s = 1.7e9;
   const core::TumbleRecording rec = core::simulate_hand_tumble(o);
   {
-    rosbag::Bag bag(dir.file("tumble.bag"), rosbag::bagmode::Write);
+    test_support::BagWriter bag(dir.file("tumble.bag"));
     for (std::size_t i = 0; i < rec.samples.size(); ++i) {
       // Every 50th message twice, every 97th written after its successor.
       std::size_t k = i;
       if (i % 97 == 0 && i + 1 < rec.samples.size()) k = i + 1;
       if (i % 97 == 1) k = i - 1;
-      sensor_msgs::Imu msg;
-      msg.header.stamp = ros::Time(rec.samples[k].stamp_s);
-      msg.linear_acceleration.x = rec.samples[k].outputs.x();
-      msg.linear_acceleration.y = rec.samples[k].outputs.y();
-      msg.linear_acceleration.z = rec.samples[k].outputs.z();
-      msg.orientation_covariance[0] = -1;
-      msg.angular_velocity_covariance[0] = -1;
-      bag.write("/imu/data_raw", msg.header.stamp + ros::Duration(0.002), msg);
-      if (i % 50 == 0) bag.write("/imu/data_raw", msg.header.stamp + ros::Duration(0.003), msg);
+      const double t = rec.samples[k].stamp_s;
+      bag.sample(rec.samples[k], t + 0.002);
+      if (i % 50 == 0) bag.sample(rec.samples[k], t + 0.003);
     }
   }
   OfflineFitArguments args;

@@ -190,9 +190,10 @@ class CalibrationRun {
   void note_rejected_command() { ++commands_rejected_; }
   // An IMU sample (any stamp order within the reorder window).
   RunActions on_sample(const ImuSample& sample);
-  // A temperature reading of the DUT (imu/temperature, optional; on the IMU's clock like the
-  // samples): each dwell records the mean of its readings (DESIGN.md section 10).
-  RunActions on_temperature(const TemperatureSample& reading);
+  // A reading of a per-dwell channel (core::kChannels: the DUT temperature on imu/temperature,
+  // DESIGN.md section 10; optional; on the IMU's clock like the samples): each dwell records the
+  // aggregate of its readings.
+  RunActions on_channel_sample(const ChannelSample& reading);
   // The gimbal controller's state on its progress topic ("IDLE", "MOVING", "SETTLED", "DONE",
   // "ABORTED", "REMOUNT", ...); `message` carries "ABORTED: <reason>". A controller that aborts
   // by itself (a gimbal fault: the device's alarm, error, silence, a lost port) is a fault of

@@ -16,6 +16,7 @@
 #include <functional>
 #include <queue>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "accel_intrinsics/core/position_table.h"
@@ -41,11 +42,15 @@ struct ImuSample {
   Eigen::Vector3d outputs = Eigen::Vector3d::Zero();  // R_u, R_v, R_w in m/s^2
 };
 
-// A sensor_msgs/Temperature reading (imu/temperature), ROS-free: degrees C at a stamp.
+// A sensor_msgs/Temperature reading (imu/temperature), ROS-free: degrees C at a stamp (what the
+// simulators record); the assembler takes it as a ChannelSample.
 struct TemperatureSample {
   double stamp_s = 0.0;
   double temperature_c = 0.0;
 };
+inline ChannelSample channel_sample(const TemperatureSample& reading) {
+  return ChannelSample{Channel::Temperature, reading.stamp_s, reading.temperature_c};
+}
 
 struct AssemblerOptions {
   double settle_discard_s = 0.0;  // samples in the first part of each dwell are dropped
@@ -62,10 +67,10 @@ struct AssemblerCounters {
   std::uint64_t dropped_backwards = 0;
   std::uint64_t duplicates = 0;  // the same stamp and values again (a duplicated message)
   std::uint64_t dropped_late = 0;       // arrived after the reorder window had passed its stamp
-  // Temperature readings averaged into a dwell, and those dropped (outside every dwell, in the
-  // settle discard, late, or not finite).
-  std::uint64_t temperatures_used = 0;
-  std::uint64_t temperatures_dropped = 0;
+  // Channel readings (core::kChannels, by channel_index) averaged into a dwell, and those dropped
+  // (outside every dwell, in the settle discard, late, or not finite).
+  PerChannel<std::uint64_t> channel_used{};
+  PerChannel<std::uint64_t> channel_dropped{};
   std::uint64_t commands = 0;
   std::uint64_t commands_out_of_order = 0;  // SETTLED that does not follow its MOVING, etc.
   std::string last_warning;                 // the latest out-of-protocol event, for logs
@@ -92,9 +97,9 @@ class DwellAssembler {
   // Each input returns the dwells it completed (most calls: none).
   CompletedRows add_command(const GimbalEvent& event);
   CompletedRows add_sample(const ImuSample& sample);
-  // Temperatures join dwells by stamp like samples; a dwell's temperature_c is the mean of its
-  // readings (NaN when it got none).
-  CompletedRows add_temperature(const TemperatureSample& reading);
+  // Channel readings join dwells by stamp like samples; a dwell's value of the channel is their
+  // aggregate (ChannelSpec::aggregate; NaN when it got none).
+  CompletedRows add_channel_sample(const ChannelSample& reading);
   // Processes everything buffered (end of a bag, or DONE plus the reorder window online).
   CompletedRows flush();
   // Processes buffered events with stamps up to `stamp_s` (a node's timer).
@@ -113,11 +118,14 @@ class DwellAssembler {
   struct Event {
     double stamp_s;
     std::uint64_t sequence;  // arrival order, breaks ties
-    bool is_command;
-    GimbalEvent command;
-    ImuSample sample;
-    bool is_temperature;  // a TemperatureSample (temperature_c), neither command nor sample
-    double temperature_c;
+    std::variant<GimbalEvent, ImuSample, ChannelSample> payload;
+    bool is_command() const { return std::holds_alternative<GimbalEvent>(payload); }
+  };
+  // A channel's readings of the current dwell.
+  struct ChannelAccumulator {
+    double sum = 0.0;
+    std::uint64_t count = 0;
+    double value(Aggregate aggregate) const;
   };
   struct Later {
     bool operator()(const Event& a, const Event& b) const;
@@ -129,7 +137,7 @@ class DwellAssembler {
   void process(const Event& event, CompletedRows* out);
   void process_command(const GimbalEvent& command, CompletedRows* out);
   void process_sample(const ImuSample& sample);
-  void process_temperature(double stamp_s, double temperature_c);
+  void process_channel(const ChannelSample& reading);
   void close_dwell(double end_stamp_s, CompletedRows* out);
 
   AssemblerOptions options_;
@@ -154,8 +162,7 @@ class DwellAssembler {
   bool in_dwell_ = false;
   GimbalEvent dwell_command_;
   DwellAccumulator accumulator_;
-  double temperature_sum_c_ = 0.0;
-  std::uint64_t temperature_count_ = 0;
+  PerChannel<ChannelAccumulator> channel_accumulators_{};
   bool done_ = false;
 
   PositionTable table_;

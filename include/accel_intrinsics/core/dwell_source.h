@@ -37,7 +37,7 @@ class DwellSource {
   virtual const char* name() const = 0;  // "commanded" or "detected"
   virtual CompletedRows add_command(const GimbalEvent& event) = 0;
   virtual CompletedRows add_sample(const ImuSample& sample) = 0;
-  virtual CompletedRows add_temperature(const TemperatureSample& reading) = 0;
+  virtual CompletedRows add_channel_sample(const ChannelSample& reading) = 0;
   // The streams ended: everything still held is judged and the assembler flushed.
   virtual CompletedRows finish() = 0;
 
@@ -54,7 +54,7 @@ class CommandedDwellSource : public DwellSource {
   const char* name() const override { return "commanded"; }
   CompletedRows add_command(const GimbalEvent& event) override;
   CompletedRows add_sample(const ImuSample& sample) override;
-  CompletedRows add_temperature(const TemperatureSample& reading) override;
+  CompletedRows add_channel_sample(const ChannelSample& reading) override;
   CompletedRows finish() override;
 };
 
@@ -69,7 +69,7 @@ class DetectedDwellSource : public DwellSource {
   CompletedRows add_command(const GimbalEvent& event) override;
   // Throws std::invalid_argument for a stamp that goes back (as RestDetector::add).
   CompletedRows add_sample(const ImuSample& sample) override;
-  CompletedRows add_temperature(const TemperatureSample& reading) override;
+  CompletedRows add_channel_sample(const ChannelSample& reading) override;
   CompletedRows finish() override;
 
   const RestDetector& detector() const { return detector_; }
@@ -78,13 +78,13 @@ class DetectedDwellSource : public DwellSource {
  private:
   // Hands the detector's new rests to the assembler with the samples held up to each.
   CompletedRows release_rests();
-  // Held samples (and temperatures) with stamps below `stamp_s` go to the assembler.
+  // Held samples (and channel readings) with stamps below `stamp_s` go to the assembler.
   void release_until(double stamp_s, CompletedRows* rows);
   void command(GimbalState state, double stamp_s, std::uint32_t step, CompletedRows* rows);
 
   RestDetector detector_;
   std::deque<ImuSample> held_;  // samples since the last released rest
-  std::deque<TemperatureSample> held_temperatures_;
+  std::deque<ChannelSample> held_readings_;  // channel readings, likewise
   std::uint64_t commands_ignored_ = 0;
 };
 

@@ -1,8 +1,8 @@
 // Dwell means: the streaming accumulator, the position table and its CSV form
 // (DESIGN.md section 2:
 // phase,step,angle_rad,t_start,t_end,n,mean_u,mean_v,mean_w,std_u,std_v,std_w, optionally
-// followed by f_x,f_y,f_z: a known orientation, section 6, and/or temperature_c: the dwell's mean
-// temperature, section 10).
+// followed by f_x,f_y,f_z: a known orientation, section 6, and by the columns of the per-dwell
+// channels, dwell_record.h: temperature_c, the dwell's mean temperature, section 10).
 #pragma once
 
 #include <Eigen/Core>
@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "accel_intrinsics/core/dwell_record.h"
 #include "accel_intrinsics/core/model.h"
 #include "accel_intrinsics/core/protocol.h"
 
@@ -37,31 +38,6 @@ class DwellAccumulator {
   Eigen::Vector3d m2_ = Eigen::Vector3d::Zero();
 };
 
-// One row of the position table: the statistics of one dwell.
-struct DwellRecord {
-  Phase phase = Phase::X;
-  std::uint32_t step = 0;
-  double angle_rad = 0.0;
-  double t_start_s = 0.0;
-  double t_end_s = 0.0;
-  std::uint64_t n = 0;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();  // R_u, R_v, R_w, m/s^2
-  Eigen::Vector3d std = Eigen::Vector3d::Zero();   // sample standard deviation, m/s^2
-  // A known orientation instead of (phase, angle) (DESIGN.md section 6: position table columns
-  // f_x,f_y,f_z, phase "-"): the unit specific force in the DUT frame. phase, step and angle are
-  // then labels without meaning; only the joint fit takes such rows.
-  bool has_direction = false;
-  Eigen::Vector3d direction = Eigen::Vector3d::Zero();
-  // A rest of unknown orientation (DESIGN.md section 11: a hand tumble, or a gimbal run fitted
-  // with --unknown-orientations): phase "-" without f_x,f_y,f_z. Only the tumble fit takes such
-  // rows; phase, step and angle are labels without meaning.
-  bool orientation_unknown = false;
-  // Mean temperature of the dwell in degrees C (imu/temperature, column temperature_c); NaN when
-  // none was recorded.
-  double temperature_c = std::numeric_limits<double>::quiet_NaN();
-  bool has_temperature() const { return std::isfinite(temperature_c); }
-};
-
 // The unit specific force of a row in the DUT frame: its direction, or the gimbal's
 // in_plane_direction(phase, angle).
 Eigen::Vector3d specific_force_direction(const DwellRecord& row);
@@ -81,18 +57,37 @@ class PositionTableError : public std::runtime_error {
 // The CSV header line, exactly as in the contract, and its extension for known orientations.
 extern const char* const kPositionTableHeader;
 extern const char* const kDirectionColumns;    // ",f_x,f_y,f_z"
-extern const char* const kTemperatureColumn;    // ",temperature_c" (after f_x,f_y,f_z if both)
+
+// The optional columns of a table: f_x,f_y,f_z, then one column per channel (kChannels order).
+struct TableColumns {
+  bool directions = false;
+  PerChannel<bool> channels{};
+  // The header line (without newline): kPositionTableHeader, then the optional columns.
+  std::string header() const;
+  // Every column of `other` is here too.
+  bool covers(const TableColumns& other) const;
+  bool operator==(const TableColumns& other) const {
+    return directions == other.directions && channels == other.channels;
+  }
+};
+// The columns a table needs: directions when a row has one, a channel when a row has a value.
+TableColumns columns_needed(const PositionTable& table);
+TableColumns columns_needed(const DwellRecord& row);
+// The columns of a header line; throws PositionTableError for any other header.
+TableColumns parse_header(const std::string& line, const std::string& source_name = "CSV");
 
 // Reads a position table. Throws PositionTableError naming the line number and the field for a
 // missing header, wrong column count, unparsable or non-finite number, unknown phase, n = 0.
 PositionTable read_position_table(std::istream& in, const std::string& source_name = "CSV");
 PositionTable read_position_table_file(const std::string& path);
-// Writes with full double precision (round trip exact).
+// Writes with full double precision (round trip exact), with the columns the rows need.
 void write_position_table(std::ostream& out, const PositionTable& table);
+void write_position_table(std::ostream& out, const PositionTable& table,
+                          const TableColumns& columns);
 void write_position_table_file(const std::string& path, const PositionTable& table);
-// Appends one row (no header) and flushes: the checkpoint of a completed dwell. With
-// `temperature_column` the row ends with the temperature_c field (empty when not recorded).
-void write_position_row(std::ostream& out, const DwellRecord& row, bool temperature_column = false);
+// Appends one row (no header) in `columns` and flushes: the checkpoint of a completed dwell.
+// Values of columns not in `columns` are not written.
+void write_position_row(std::ostream& out, const DwellRecord& row, const TableColumns& columns);
 
 // The one rule for the direction of approach of a visit, from the order of visits per phase: the
 // first visit of a phase is +1, a higher angle than the previous visit +1, a lower one -1, and
@@ -109,6 +104,22 @@ class ApproachTracker {
   double previous_angle_[3] = {0.0, 0.0, 0.0};
   int previous_approach_[3] = {+1, +1, +1};
 };
+
+// Dwells of a retried position (DESIGN.md section 4, the calibration run): after a fault in a
+// dwell, the calibration node has the controller measure the position again and discards the
+// dwell the fault cut short. A table assembled from the commands alone (a bag) holds both, one
+// after the other at the same (phase, step). The earlier of such a pair is superseded, except at
+// the turn of a two-way sweep, where the same step is visited twice in a row by design (the
+// previous dwell of the phase lies below it and the next one below too); a run of more than two
+// visits there leaves it open which was cut short (the commands do not carry the approach): the
+// visits with the fewest samples are taken as cut short (`by_samples` counts those).
+struct SupersededRows {
+  std::vector<std::size_t> rows;  // indices into the table, ascending
+  std::size_t by_samples = 0;
+};
+SupersededRows find_remeasured_rows(const PositionTable& table);
+// The table without the rows `rows` (indices, ascending).
+PositionTable without_rows(PositionTable table, const std::vector<std::size_t>& rows);
 
 // T_ref of the temperature terms (DESIGN.md section 10): the mean of the dwell temperatures over
 // the rows that have one; NaN when none has.

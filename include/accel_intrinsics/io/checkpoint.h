@@ -1,7 +1,7 @@
 // The calibration run's checkpoint in output_dir, so that nothing measured is lost when the node
 // dies (DESIGN.md section 4, "io"):
 //   <prefix>position_table.csv      the accepted rows, one flushed line per dwell (the contract's
-//                                   position table)
+//                                   position table); a channel that starts late widens it
 //   <prefix>calibration_state.yaml  time_origin_s, steps, rows, done, fault; atomic rewrite
 // and the names of the node's other files there (result YAML, analysis JSON).
 #pragma once
@@ -49,13 +49,15 @@ class CheckpointFiles {
 
  private:
   std::string path(const char* name) const;
+  // Rewrites the table so far with the columns of `needed` added.
+  void widen(const core::TableColumns& needed);
 
   std::string dir_, prefix_;
   std::ofstream table_;
   bool append_ = false;  // after load(): continue the restored table
-  // The table has the temperature_c column: decided by the header of a continued table, else by
-  // the first row (a run that records temperatures has one from the first dwell on).
-  bool temperature_column_ = false;
+  // The table's columns: the header of a continued table, else those of the first row; widened
+  // when a later row has a value in a column the table lacks.
+  core::TableColumns columns_;
 };
 
 }  // namespace io

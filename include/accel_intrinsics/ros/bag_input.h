@@ -14,6 +14,7 @@
 #include "accel_intrinsics/core/dwell_assembler.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/ros/bag_topics.h"
+#include "accel_intrinsics/ros/channel_messages.h"
 #include "accel_intrinsics/ros/names.h"
 
 namespace accel_intrinsics {
@@ -23,9 +24,9 @@ struct BagInputOptions {
   // "/<ns>/imu/data_raw"; a leading '/' asks for that exact topic. See resolve_topic().
   std::string imu_topic = names::kImuTopic;
   std::string command_topic = names::kGimbalCommandTopic;
-  // Optional sensor_msgs/Temperature of the DUT (DESIGN.md section 10): read when the bag has it
-  // (each dwell then records its mean temperature); "" never reads one.
-  std::string temperature_topic = names::kTemperatureTopic;
+  // The per-dwell channels' topics (core::kChannels; the DUT temperature, DESIGN.md section 10):
+  // each read when the bag has it (each dwell then records its value); "" never reads one.
+  core::PerChannel<std::string> channel_topics = default_channel_topics();
   // Dwell assembly. The reorder window defaults to 10 s, wider than any shipped configuration
   // (node 0.25 s, simulated stand 5 s): in a bag it costs only memory (window x rate events) and
   // a little time, and it keeps messages that a recorder received late (a sim-time recording
@@ -59,7 +60,7 @@ struct BagInputOptions {
   bool imu_by_type = false;
   // Flush the assembler after the last message (false: more bags of the same run follow).
   bool flush_at_end = true;
-  // A bag without any gimbal command topic is read (IMU, and temperature, only; command_topic in
+  // A bag without any gimbal command topic is read (IMU, and channels, only; command_topic in
   // the statistics empty) instead of refused: a hand tumble.
   bool command_topic_optional = false;
 };
@@ -68,9 +69,9 @@ struct BagInputStats {
   std::string path;
   std::string imu_topic;      // as resolved in the bag
   std::string command_topic;  // as resolved in the bag
-  std::string temperature_topic;  // as resolved in the bag; "" when it has none
+  core::PerChannel<std::string> channel_topics;  // as resolved in the bag; "" when it has none
   std::uint64_t imu_messages = 0;
-  std::uint64_t temperature_messages = 0;
+  core::PerChannel<std::uint64_t> channel_messages{};
   std::uint64_t command_messages = 0;
   // Rejected as the calibration node rejects them: phase or state outside the constants, angle
   // not finite, steps 0 or step >= steps, zero stamp.

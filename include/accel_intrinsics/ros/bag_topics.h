@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "accel_intrinsics/core/dwell_record.h"
 #include "accel_intrinsics/ros/bag_format.h"
 
 namespace accel_intrinsics {
@@ -31,7 +32,7 @@ std::string resolve_topic(const std::string& requested, const std::vector<BagTop
 // ("/stand1/imu/data_raw", "imu/data_raw") -> "/stand1/"; "/" when not namespaced.
 std::string topic_namespace(const std::string& resolved, const std::string& requested);
 
-// An optional topic (imu/temperature): "" when no topic of the bag has the requested name (exact
+// An optional topic (a channel's, imu/temperature): "" when no topic of the bag has the requested name (exact
 // or namespaced); otherwise resolve_topic(), which throws for an ambiguous name or another type.
 std::string resolve_optional_topic(const std::string& requested, const std::vector<BagTopic>& topics,
                                    const std::string& expected_datatype,
@@ -41,7 +42,9 @@ std::string resolve_optional_topic(const std::string& requested, const std::vect
 struct RunTopics {
   std::string imu;
   std::string command;
-  std::string temperature;  // sensor_msgs/Temperature, "" when the bag has none (optional)
+  // Each per-dwell channel's topic (core::kChannels, of its message type); "" when the bag has
+  // none (channels are optional).
+  core::PerChannel<std::string> channels;
   std::string note;  // how a topic was found when not by its name, for the user
 };
 
@@ -49,12 +52,12 @@ struct RunTopics {
 // namespaces, the namespace of the other decides (several stands recorded in one bag). With
 // `imu_by_type` (the IMU topic was not named by the user), a bag without the default IMU topic
 // but with exactly one sensor_msgs/Imu topic uses that one and says so in `note`.
-// The temperature topic `temperature_requested` is optional ("" skips it) and preferred in the
+// The channels' topics `channels_requested` are optional ("" skips one) and preferred in the
 // IMU's namespace. With `command_optional`, a bag without any GimbalCommand topic (a hand tumble)
 // resolves with `command` empty.
 RunTopics resolve_run_topics(const std::string& imu_requested, const std::string& command_requested,
                              const std::vector<BagTopic>& topics, bool imu_by_type = false,
-                             const std::string& temperature_requested = "",
+                             const core::PerChannel<std::string>& channels_requested = {},
                              bool command_optional = false);
 
 }  // namespace accel_intrinsics

@@ -16,7 +16,6 @@
 #include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
-#include <sensor_msgs/Temperature.h>
 #include <std_srvs/Trigger.h>
 
 #include <atomic>
@@ -87,15 +86,15 @@ class CalibrationNode {
   // Message handlers (the subscribers call them; tests and benchmarks may too).
   void handle_command(const GimbalCommand& msg);
   void handle_imu(const sensor_msgs::Imu& msg);
-  // The DUT's temperature (imu/temperature, optional): each dwell records its mean.
-  void handle_temperature(const sensor_msgs::Temperature& msg);
+  // A reading of a per-dwell channel (core::kChannels, e.g. the DUT's temperature on
+  // imu/temperature; optional): each dwell records the aggregate of its readings.
+  void handle_channel_sample(const core::ChannelSample& reading);
   // Ticks the run; returns the controller requests due (carried out by on_timer, unlocked).
   std::vector<core::RunAction> update(const ros::Time& now);
 
  private:
   void on_command(const GimbalCommand::ConstPtr& msg) { handle_command(*msg); }
   void on_imu(const sensor_msgs::Imu::ConstPtr& msg) { handle_imu(*msg); }
-  void on_temperature(const sensor_msgs::Temperature::ConstPtr& msg) { handle_temperature(*msg); }
   void on_progress(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg);
   void on_timer(const ros::TimerEvent&);
   // Wall-time watch of a stream that stopped after DONE (see idle_fit_after_s).
@@ -147,7 +146,8 @@ class CalibrationNode {
   std::atomic<bool> serving_imu_{false};
   core::CalibrationRun run_;
   io::CheckpointFiles files_;
-  ros::Subscriber command_sub_, imu_sub_, progress_sub_, temperature_sub_;
+  ros::Subscriber command_sub_, imu_sub_, progress_sub_;
+  std::vector<ros::Subscriber> channel_subs_;  // one per core::kChannels row
   ros::Publisher result_pub_, status_pub_, analysis_pub_;
   ros::ServiceServer get_srv_, reset_srv_, analyze_srv_;
   ros::Timer timer_;

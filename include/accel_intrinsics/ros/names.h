@@ -6,8 +6,7 @@ namespace names {
 
 constexpr char kGimbalCommandTopic[] = "gimbal/command";
 constexpr char kImuTopic[] = "imu/data_raw";
-// sensor_msgs/Temperature of the DUT, degrees C, optional (DESIGN.md section 10).
-constexpr char kTemperatureTopic[] = "imu/temperature";
+// The per-dwell channels' topics (imu/temperature, ...) are in core::kChannels (dwell_record.h).
 constexpr char kResultTopic[] = "calibration/result";
 constexpr char kStartService[] = "gimbal_controller/start";
 constexpr char kAbortService[] = "gimbal_controller/abort";

@@ -53,6 +53,7 @@
 #include <vector>
 
 #include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/ros/channel_messages.h"
 #include "accel_intrinsics/ros/names.h"
 
 namespace accel_intrinsics {
@@ -81,8 +82,9 @@ struct OfflineFitArguments {
   bool rest_min_s_given = false;
   std::string imu_topic = names::kImuTopic;
   std::string command_topic = names::kGimbalCommandTopic;
-  // Optional DUT temperature (sensor_msgs/Temperature): used when the bag has it.
-  std::string temperature_topic = names::kTemperatureTopic;
+  // The per-dwell channels' topics (core::kChannels; --<name>-topic, e.g. --temperature-topic):
+  // each used when the bag has it.
+  core::PerChannel<std::string> channel_topics = default_channel_topics();
   double gravity = core::kStandardGravity;  // m/s^2
   std::string model = "joint";
   bool analyze = false;
@@ -103,11 +105,14 @@ struct OfflineFitArguments {
   // Given explicitly (they apply to --bag only, and are refused with --csv).
   bool imu_topic_given = false;
   bool command_topic_given = false;
-  bool temperature_topic_given = false;
+  core::PerChannel<bool> channel_topic_given{};
   bool settle_discard_given = false;
   bool imu_time_offset_given = false;
   bool gravity_given = false;
 };
+
+// The command-line option of a channel's topic: "--temperature-topic" (core::kChannels).
+std::string channel_topic_option(std::size_t channel);
 
 // Parses the command line (arguments without the program name) into `args`. Returns false when
 // the tool should exit at once with *exit_status: --help (0, the help on `out`) or a malformed
