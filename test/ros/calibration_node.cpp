@@ -230,8 +230,9 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
   // below every stamp sent, so nothing is released (the first sample, 99.5 s, waits until the
   // clock passes 159.5 s).
   {
-    ros::Subscriber diagnostics =
-        nh_.subscribe("/diagnostics", 100, &CalibrationNodeTest::on_diagnostics, this);
+    ros::Subscriber diagnostics = nh_.subscribe<diagnostic_msgs::DiagnosticArray>(
+        "/diagnostics", 100,
+        [this](const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) { on_diagnostics(msg); });
     double clock = 50.0;
     EXPECT_TRUE(test_wait::wait_for(
         [&] {
