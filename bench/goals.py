@@ -69,6 +69,7 @@ def main(argv):
         ("calibration node memory growth, dwells of 1.5 / 10 / 60 s (flat)", lambda: fmax("node_load_dwell_1.5s_rss_growth", "node_load_dwell_10s_rss_growth", "node_load_dwell_60s_rss_growth"), "<=", 1024, kb, ISSUE15 + " (flat; 1 MB set here)"),
         ("calibration nodelet at 50 kHz (in process, pointers), 5 messages per 100 µs", lambda: f("calibration_nodelet_50khz_paced_cpu"), "<", 5.0, pct, ISSUE26),
         ("calibration nodelet at 50 kHz (in process, pointers), bursts of 25", lambda: f("calibration_nodelet_50khz_bursty_cpu"), "<", 5.0, pct, ISSUE26),
+        ("calibration nodelet at 50 kHz: the whole process with the publisher (driver) thread, paced / bursty", lambda: "%.1f / %.1f %%" % (f("calibration_nodelet_50khz_paced_process_cpu"), f("calibration_nodelet_50khz_bursty_process_cpu")), None, None, str, ""),
         ("calibration nodelet at 50 kHz: messages not received or dropped late (all runs)", lambda: sum(f("calibration_nodelet_50khz_%s_%s" % (a, b)) for a in ("paced", "bursty") for b in ("lost", "dropped_late")), "<=", 0, lambda v: "%.0f" % v, ISSUE26),
         ("apply node at 10 kHz (TCP in and out), bursts of 5", lambda: f("apply_node_bursty_cpu"), "<", 5.0, pct, ISSUE12),
         ("apply node at 10 kHz (TCP in and out), one message per 100 µs", lambda: f("apply_node_paced_cpu"), "<", 5.0, pct, ISSUE12),

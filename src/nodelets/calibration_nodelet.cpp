@@ -26,9 +26,9 @@ class CalibrationNodelet : public nodelet::Nodelet {
       }
       if (mode != "gimbal") throw ParamError("parameter ~mode: '" + mode + "' (gimbal or tumble)");
       CalibrationOptions options = CalibrationOptions::load(pnh);
-      // In a manager the IMU publisher's thread is the driver's: unless asked otherwise, the
-      // messages go to the nodelet's own queue and thread, which handles every imu_batch_s what
-      // came meanwhile (one wake-up per period), never in the driver's thread.
+      // In a manager the IMU publisher's thread is the driver's: unless asked otherwise, that
+      // thread only appends each message's pointer to the node's batch, and the node's own thread
+      // handles every imu_batch_s what came meanwhile (one wake-up per period).
       if (!pnh.hasParam("immediate_imu")) options.immediate_imu = false;
       node_.reset(new CalibrationNode(getNodeHandle(), pnh, options));
     } catch (const ParamError& e) {

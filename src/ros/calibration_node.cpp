@@ -25,6 +25,11 @@
 
 namespace accel_intrinsics {
 
+namespace {
+// roscpp's queue of the IMU subscription, and the bound of the IMU thread's batch.
+constexpr std::size_t kImuQueueSize = 20000;
+}  // namespace
+
 CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
                                  const CalibrationOptions& options)
     : nh_(nh),
@@ -52,16 +57,16 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
   command_sub_ = nh_.subscribe(names::kGimbalCommandTopic, 1000, &CalibrationNode::on_command, this,
                                ros::TransportHints().tcpNoDelay());
   ros::CallbackQueueInterface* imu_queue = nullptr;  // the node handle's
-  if (options_.immediate_imu) {
-    imu_queue = &immediate_queue_;
-  } else if (options_.imu_batch_s > 0.0) {
-    imu_queue_.reset(new ros::CallbackQueue);
-    imu_queue = imu_queue_.get();
-  }
+  const bool batched = !options_.immediate_imu && options_.imu_batch_s > 0.0;
+  // Batched: roscpp calls on_imu_batched at once in the publisher's thread (it only appends the
+  // pointer, never naps: no coalescing there), and the IMU thread handles the batches.
+  if (options_.immediate_imu || batched) imu_queue = &immediate_queue_;
   ros::SubscribeOptions imu_options = ros::SubscribeOptions::create<sensor_msgs::Imu>(
-      names::kImuTopic, 20000, boost::bind(&CalibrationNode::on_imu, this, boost::placeholders::_1),
+      names::kImuTopic, kImuQueueSize,
+      boost::bind(batched ? &CalibrationNode::on_imu_batched : &CalibrationNode::on_imu, this,
+                  boost::placeholders::_1),
       ros::VoidConstPtr(), imu_queue);
-  immediate_queue_.set_coalesce_period(options_.imu_coalesce_s);
+  immediate_queue_.set_coalesce_period(options_.immediate_imu ? options_.imu_coalesce_s : 0.0);
   imu_sub_ = nh_.subscribe(imu_options);
   for (const ChannelMessage& channel : channel_messages()) {
     channel_subs_.push_back(channel.subscribe(
@@ -81,9 +86,9 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
            options_.calibrate.analyze ? ", analysis after the fit" : "",
            options_.resume ? ", resume from the checkpoint" : "");
   // Last: nothing after this may throw (a joinable std::thread must not be destroyed).
-  if (imu_queue_) {
+  if (batched) {
     serving_imu_ = true;
-    imu_thread_ = std::thread(&CalibrationNode::serve_imu_queue, this);
+    imu_thread_ = std::thread(&CalibrationNode::serve_imu_batches, this);
   }
   fit_thread_ = std::thread(&CalibrationNode::fit_loop, this);
 }
@@ -95,7 +100,11 @@ CalibrationNode::~CalibrationNode() {
   }
   imu_sub_.shutdown();
   if (imu_thread_.joinable()) {
-    serving_imu_ = false;
+    {
+      std::lock_guard<std::mutex> lock(imu_batch_mutex_);
+      serving_imu_ = false;
+    }
+    imu_batch_cv_.notify_all();
     imu_thread_.join();
   }
   for (ros::Subscriber& sub : channel_subs_) sub.shutdown();
@@ -113,13 +122,44 @@ CalibrationNode::~CalibrationNode() {
 
 // ---- Inputs ------------------------------------------------------------------------------------
 
-void CalibrationNode::serve_imu_queue() {
-  // As the apply node's (serve_coalesced): callAvailable waits for the first message after an
-  // idle spell and handles what is there; the nap lets the next ones pile up in the queue.
-  // Publishers adding meanwhile wake nobody: one wake-up per imu_batch_s at most.
+void CalibrationNode::on_imu_batched(const sensor_msgs::Imu::ConstPtr& msg) {
+  bool wake = false;
+  {
+    std::lock_guard<std::mutex> lock(imu_batch_mutex_);
+    if (imu_batch_.size() >= kImuQueueSize) {
+      // As roscpp's full subscriber queue: a stalled IMU thread does not grow memory forever.
+      ROS_WARN_THROTTLE(5.0, "calibration: the IMU batch is full (%zu messages): dropping messages",
+                        imu_batch_.size());
+      return;
+    }
+    imu_batch_.push_back(msg);
+    wake = imu_thread_idle_ && imu_batch_.size() == 1;
+  }
+  if (wake) imu_batch_cv_.notify_one();
+}
+
+void CalibrationNode::serve_imu_batches() {
+  // Waits for the first message after an idle spell, handles what is there, then naps so that
+  // the next ones pile up: one wake-up per imu_batch_s at most, one lock of the node per batch.
   const auto nap = std::chrono::duration<double>(options_.imu_batch_s);
+  std::vector<sensor_msgs::Imu::ConstPtr> batch;
   while (serving_imu_) {
-    imu_queue_->callAvailable(ros::WallDuration(0.1));
+    {
+      std::unique_lock<std::mutex> lock(imu_batch_mutex_);
+      if (imu_batch_.empty()) {
+        imu_thread_idle_ = true;
+        imu_batch_cv_.wait_for(lock, std::chrono::milliseconds(100),
+                               [this] { return !imu_batch_.empty() || !serving_imu_; });
+        imu_thread_idle_ = false;
+      }
+      batch.swap(imu_batch_);  // the publisher appends to the emptied vector's capacity
+    }
+    if (!batch.empty()) {
+      std::lock_guard<std::recursive_mutex> lock(mutex_);
+      last_activity_ = ros::WallTime::now();
+      for (const sensor_msgs::Imu::ConstPtr& msg : batch) handle_imu_locked(*msg);
+    }
+    batch.clear();  // the messages are released in this thread, not in the publisher's
     if (serving_imu_) std::this_thread::sleep_for(nap);
   }
 }
@@ -143,6 +183,10 @@ void CalibrationNode::handle_command(const GimbalCommand& msg) {
 void CalibrationNode::handle_imu(const sensor_msgs::Imu& msg) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   last_activity_ = ros::WallTime::now();
+  handle_imu_locked(msg);
+}
+
+void CalibrationNode::handle_imu_locked(const sensor_msgs::Imu& msg) {
   ++imu_received_;
   const core::ImuSample sample = to_core(msg);
   if (std::isfinite(sample.stamp_s)) {

@@ -1,4 +1,5 @@
 // The calibration node alone (test/ros/calibration_node.test). The test owns /clock.
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <diagnostic_msgs/DiagnosticStatus.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
@@ -20,6 +21,7 @@
 #include "accel_intrinsics/GetIntrinsics.h"
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/core/protocol.h"
+#include "wait_for.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
@@ -113,6 +115,23 @@ class CalibrationNodeTest : public ::testing::Test {
     m.linear_acceleration.y = outputs.y();
     m.linear_acceleration.z = outputs.z();
     imu_pub_.publish(m);
+    ++samples_sent_;
+  }
+
+  // The node's count of IMU messages received, from its diagnostics (the "imu" status).
+  void on_diagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) {
+    for (const auto& st : msg->status) {
+      if (st.name.size() < 5 || st.name.compare(st.name.size() - 5, 5, ": imu") != 0) continue;
+      for (const auto& kv : st.values) {
+        if (kv.key != "received") continue;
+        std::lock_guard<std::mutex> lock(status_mutex_);
+        imu_received_ = std::stoll(kv.value);
+      }
+    }
+  }
+  long long imu_received() {
+    std::lock_guard<std::mutex> lock(status_mutex_);
+    return imu_received_;
   }
 
   Eigen::Vector3d truth_outputs(int phase, int step) const {
@@ -133,6 +152,8 @@ class CalibrationNodeTest : public ::testing::Test {
   ros::ServiceClient get_, reset_;
   std::mutex status_mutex_;
   std::map<std::string, std::string> status_;
+  long long imu_received_ = -1;  // from the node's diagnostics; -1: none yet
+  long long samples_sent_ = 0;
   std::string output_dir_;
   double g_ = 9.80665, tolerance_ = 1e-9;
   int steps_ = 3;
@@ -203,7 +224,26 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
     command_pub_.publish(bad);
   }
   const double done_stamp = t;
-  ros::WallDuration(2.0).sleep();  // let everything arrive; the clock stands still at 50 s
+  // Wait until everything has arrived: the two malformed commands, last on their topic, are
+  // counted on arrival (calibration/status), and the IMU messages by the node's diagnostics.
+  // Both are published on the node's timer: the clock moves on in small steps from 50 s, far
+  // below every stamp sent, so nothing is released (the first sample, 99.5 s, waits until the
+  // clock passes 159.5 s).
+  {
+    ros::Subscriber diagnostics = nh_.subscribe<diagnostic_msgs::DiagnosticArray>(
+        "/diagnostics", 100,
+        [this](const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) { on_diagnostics(msg); });
+    double clock = 50.0;
+    EXPECT_TRUE(test_wait::wait_for(
+        [&] {
+          if (clock < 95.0) set_clock(clock += 0.1);
+          return status()["commands_rejected"] == "2" && imu_received() == samples_sent_;
+        },
+        30.0, "every message sent to reach the node (commands_rejected 2, IMU messages received " +
+                  std::to_string(samples_sent_) + ")"))
+        << "commands_rejected " << status()["commands_rejected"] << ", IMU received "
+        << imu_received();
+  }
 
   // Nothing is released yet: the service names what is missing.
   {

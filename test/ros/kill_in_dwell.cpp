@@ -104,7 +104,14 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
     if (!back) ros::WallDuration(0.1).sleep();
   }
   ASSERT_TRUE(back) << "/calibration did not come back";
-  ros::WallDuration(2.0).sleep();  // its connections to the publishers
+  // Its connections to the publishers (subscribing is registering with the master; the
+  // connections follow).
+  ASSERT_TRUE(test_wait::wait_for(
+      [] {
+        const std::set<std::string> c = test_wait::connected_inbound_topics("/calibration");
+        return c.count("/clock") && c.count("/gimbal/command") && c.count("/imu/data_raw");
+      },
+      60.0, "the restarted /calibration to connect to /clock, /gimbal/command and /imu/data_raw"));
   ASSERT_EQ(commands_seen(), commands_at_kill) << "the stand moved while the clock was held";
   ASSERT_TRUE(pause_clock(false));
 

@@ -22,16 +22,23 @@
 #include "accel_intrinsics/core/fit.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "stand_checks.h"
+#include "wait_for.h"
 
 namespace {
 std::mutex mutex;
 std::map<std::string, std::string> progress, status;
+std::uint64_t progress_messages = 0;
 double first_moving_stamp = -1.0;
 accel_intrinsics::GimbalCommand last_command;
 bool have_command = false;
 void on_progress(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex);
   for (const auto& kv : msg->values) progress[kv.key] = kv.value;
+  ++progress_messages;
+}
+std::uint64_t progress_count() {
+  std::lock_guard<std::mutex> lock(mutex);
+  return progress_messages;
 }
 void on_status(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex);
@@ -52,11 +59,18 @@ bool settled_at(int position, int steps) {
   return have_command && last_command.state == accel_intrinsics::GimbalCommand::SETTLED &&
          static_cast<int>(last_command.phase) * steps + static_cast<int>(last_command.step) == position;
 }
-// Holds or releases the simulated clock (sim_clock ~pause).
-bool pause_clock(bool pause) {
+// Holds or releases the simulated clock (sim_clock ~pause); *at_s: the clock's time then (its
+// answer: "paused at 123.456000 s").
+bool pause_clock(bool pause, double* at_s = nullptr) {
   std_srvs::SetBool srv;
   srv.request.data = pause;
-  return ros::service::call("/sim_clock/pause", srv) && srv.response.success;
+  if (!ros::service::call("/sim_clock/pause", srv) || !srv.response.success) return false;
+  if (at_s) {
+    const std::size_t at = srv.response.message.find(" at ");
+    if (at == std::string::npos) return false;
+    *at_s = std::stod(srv.response.message.substr(at + 4));
+  }
+  return true;
 }
 std::string value(std::map<std::string, std::string>& m, const std::string& key) {
   std::lock_guard<std::mutex> lock(mutex);
@@ -93,8 +107,13 @@ inline void hold_clock_in_dwell(int position, int steps, const ros::WallTime& de
     ros::WallDuration(0.005).sleep();
   }
   ASSERT_TRUE(settled_at(position, steps)) << "no SETTLED of position " << position + 1;
-  ASSERT_TRUE(pause_clock(true));
-  ros::WallDuration(1.0).sleep();  // callbacks in flight done; nothing moves in simulated time
+  double held_s = 0.0;
+  ASSERT_TRUE(pause_clock(true, &held_s));
+  // The clock messages in flight have arrived once this process's clock reads the held time
+  // (sim_clock publishes that time again and again while paused; 1e-6: the answer's digits).
+  ASSERT_TRUE(test_wait::wait_for([&] { return ros::Time::now().toSec() >= held_s - 1e-6; }, 30.0,
+                                  "the test's clock to reach the held " + std::to_string(held_s) +
+                                      " s"));
   ASSERT_TRUE(settled_at(position, steps)) << "the clock did not stop in the dwell";
   double settled_s = 0.0;
   {
@@ -149,6 +168,7 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
               value(progress, "position").c_str(), value(progress, "phase").c_str(),
               value(progress, "step").c_str(), hold_clock ? ", clock held in its dwell" : "");
   if (hold_clock) {
+    const std::uint64_t progress_before = progress_count();
     bool back = false;
     while (!back && ros::WallTime::now() < deadline) {
       const int now_pid = node_pid(victim);
@@ -156,7 +176,28 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
       if (!back) ros::WallDuration(0.1).sleep();
     }
     ASSERT_TRUE(back) << victim << " did not come back";
-    ros::WallDuration(2.0).sleep();  // its services, subscriptions and latched progress
+    // Before the clock runs on, the new process is wired up: its services answer, its
+    // subscriptions are connected, and a restarted controller's latched progress has gone out
+    // (this test got it; the calibration node has its connection to the new controller).
+    const bool calibration = victim == "/calibration";
+    const std::set<std::string> inputs =
+        calibration ? std::set<std::string>{"/clock", "/gimbal/command", "/imu/data_raw",
+                                            "/gimbal_controller/progress"}
+                    : std::set<std::string>{"/clock"};
+    const std::string service =
+        calibration ? "/calibration/get_intrinsics" : "/gimbal_controller/start";
+    ASSERT_TRUE(test_wait::wait_for(
+        [&] {
+          if (!ros::service::exists(service, false)) return false;
+          const std::set<std::string> connected = test_wait::connected_inbound_topics(victim);
+          for (const std::string& topic : inputs) {
+            if (!connected.count(topic)) return false;
+          }
+          return calibration || (progress_count() > progress_before &&
+                                 test_wait::connected_inbound_topics("/calibration")
+                                     .count("/gimbal_controller/progress"));
+        },
+        60.0, "the restarted " + victim + " to answer " + service + " and connect its inputs"));
     ASSERT_TRUE(settled_at(kill_at - 1, steps)) << "the stand moved while the clock was held";
     ASSERT_TRUE(pause_clock(false));
   }

@@ -9,6 +9,8 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <map>
+#include <string>
 #include <mutex>
 #include <vector>
 
@@ -16,6 +18,7 @@
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/protocol.h"
 #include "stand_checks.h"
+#include "wait_for.h"
 
 namespace {
 using accel_intrinsics::GimbalCommand;
@@ -26,6 +29,16 @@ void on_command(const GimbalCommand::ConstPtr& msg) {
   commands.push_back(*msg);
 }
 bool exists(const std::string& path) { return ::access(path.c_str(), F_OK) == 0; }
+// The latest calibration/status.
+std::map<std::string, std::string> status;
+void on_status(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex);
+  for (const auto& kv : msg->values) status[kv.key] = kv.value;
+}
+std::string status_value(const std::string& key) {
+  std::lock_guard<std::mutex> lock(mutex);
+  return status[key];
+}
 
 accel_intrinsics::GetIntrinsics::Response wait_for_result(double timeout_s) {
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
@@ -65,6 +78,7 @@ TEST(StandPromises, ResumeParamsStartTheRunThereAndResetDeletesTheCheckpoint) {
   pnh.getParam("resume_step", resume_step);
   pnh.getParam("timeout_s", timeout_s);
   ros::Subscriber c = nh.subscribe("/gimbal/command", 1000, on_command);
+  ros::Subscriber st = nh.subscribe("/calibration/status", 10, on_status);
   stand_checks::reset_and_start();
   if (HasFatalFailure()) return;
   const std::string table = output_dir + "/position_table.csv";
@@ -95,12 +109,26 @@ TEST(StandPromises, ResumeParamsStartTheRunThereAndResetDeletesTheCheckpoint) {
   // Stop the gimbal (no further commands to start a new checkpoint), then reset.
   std_srvs::Trigger abort, reset;
   ASSERT_TRUE(ros::service::call("/gimbal_controller/abort", abort));
-  ros::WallDuration(2.0).sleep();
+  // The calibration node has taken in the controller's abort (its status names it).
+  ASSERT_TRUE(test_wait::wait_for([] { return !status_value("fault").empty(); }, 60.0,
+                                  "calibration/status to name the controller's abort"));
   ASSERT_TRUE(ros::service::call("/calibration/reset", reset));
   EXPECT_TRUE(reset.response.success) << reset.response.message;
   EXPECT_FALSE(exists(table)) << table << " survived calibration/reset";
   EXPECT_FALSE(exists(state)) << state << " survived calibration/reset";
-  ros::WallDuration(2.0).sleep();
+  // Still gone once the node has run on past its reorder window (a command still in flight at
+  // the reset would have been released by then) and two status periods: a status of the node
+  // stamped that late (the run ticks, and writes its checkpoint, in the same timer callback).
+  double window_s = 0.0, period_s = 1.0;
+  ASSERT_TRUE(ros::param::get("/calibration/reorder_window_s", window_s));
+  ros::param::get("/calibration/status_period_s", period_s);
+  const double until_s = ros::Time::now().toSec() + window_s + 2.0 * period_s;
+  EXPECT_TRUE(test_wait::wait_for(
+      [&] {
+        const std::string stamp = status_value("stamp");
+        return !stamp.empty() && std::stod(stamp) >= until_s;
+      },
+      60.0, "a calibration/status stamped " + std::to_string(until_s) + " s (reset + window)"));
   EXPECT_FALSE(exists(table)) << table << " came back after calibration/reset";
   EXPECT_FALSE(exists(state)) << state << " came back after calibration/reset";
 }

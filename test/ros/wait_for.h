@@ -1,0 +1,63 @@
+// Waiting for an event in the rostests instead of sleeping a fixed time (issue 24): a condition
+// polled until it holds or a generous wall-time bound has passed; the failure names the event.
+//   ASSERT_TRUE(test_wait::wait_for([&] { return ...; }, 30.0, "the node's status after reset"));
+#pragma once
+
+#include <gtest/gtest.h>
+#include <ros/master.h>
+#include <ros/network.h>
+#include <ros/ros.h>
+#include <xmlrpcpp/XmlRpcClient.h>
+
+#include <set>
+#include <string>
+
+namespace test_wait {
+
+// Polls `done()` every period_s until it returns true, or fails after timeout_s of wall time.
+template <class Condition>
+::testing::AssertionResult wait_for(Condition done, double timeout_s, const std::string& what,
+                                    double period_s = 0.05) {
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
+  while (!done()) {
+    if (ros::WallTime::now() >= deadline) {
+      return ::testing::AssertionFailure()
+             << "waited " << timeout_s << " s (wall time) for " << what << ", in vain";
+    }
+    ros::WallDuration(period_s).sleep();
+  }
+  return ::testing::AssertionSuccess();
+}
+
+// The topics on which `node` has a connected subscription (inbound connection), from its own
+// XML-RPC API (getBusInfo, as rosnode info shows them); empty when the node cannot be asked.
+inline std::set<std::string> connected_inbound_topics(const std::string& node) {
+  std::set<std::string> topics;
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  args[1] = node;
+  if (!ros::master::execute("lookupNode", args, result, payload, false)) return topics;
+  std::string host;
+  std::uint32_t port = 0;
+  if (!ros::network::splitURI(static_cast<std::string>(payload), host, port)) return topics;
+  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
+  XmlRpc::XmlRpcValue request, response;
+  request[0] = ros::this_node::getName();
+  if (!client.execute("getBusInfo", request, response) ||
+      response.getType() != XmlRpc::XmlRpcValue::TypeArray || response.size() < 3 ||
+      static_cast<int>(response[0]) != 1) {
+    return topics;
+  }
+  // Each connection: [id, peer, direction "i"/"o", transport, topic, connected, ...].
+  XmlRpc::XmlRpcValue& connections = response[2];
+  for (int i = 0; i < connections.size(); ++i) {
+    XmlRpc::XmlRpcValue& c = connections[i];
+    if (c.getType() != XmlRpc::XmlRpcValue::TypeArray || c.size() < 6) continue;
+    if (static_cast<std::string>(c[2]) != "i") continue;
+    if (c[5].getType() == XmlRpc::XmlRpcValue::TypeBoolean && !static_cast<bool>(c[5])) continue;
+    topics.insert(static_cast<std::string>(c[4]));
+  }
+  return topics;
+}
+
+}  // namespace test_wait
