@@ -25,11 +25,6 @@
 
 namespace accel_intrinsics {
 
-namespace {
-// roscpp's queue of the IMU subscription, and the bound of the IMU thread's batch.
-constexpr std::size_t kImuQueueSize = 20000;
-}  // namespace
-
 CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
                                  const CalibrationOptions& options)
     : nh_(nh),
@@ -56,11 +51,20 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
   updater_->add("run", this, &CalibrationNode::diagnose_run);
   command_sub_ = nh_.subscribe(names::kGimbalCommandTopic, 1000, &CalibrationNode::on_command, this,
                                ros::TransportHints().tcpNoDelay());
-  ros::CallbackQueueInterface* imu_queue = nullptr;  // the node handle's
   const bool batched = !options_.immediate_imu && options_.imu_batch_s > 0.0;
   // Batched: roscpp calls on_imu_batched at once in the publisher's thread (it only appends the
   // pointer, never naps: no coalescing there), and the IMU thread handles the batches.
-  if (options_.immediate_imu || batched) imu_queue = &immediate_queue_;
+  ros::CallbackQueueInterface* imu_queue =  // nullptr: the node handle's
+      options_.immediate_imu || batched ? &immediate_queue_ : nullptr;
+  if (batched) {  // before the subscription: on_imu_batched hands to it
+    imu_batcher_ = std::make_unique<MessageBatcher<sensor_msgs::Imu>>(
+        kImuQueueSize, options_.imu_batch_s,
+        [this](const std::vector<sensor_msgs::Imu::ConstPtr>& batch) {
+          std::lock_guard<std::recursive_mutex> lock(mutex_);  // once per batch
+          last_activity_ = ros::WallTime::now();
+          for (const sensor_msgs::Imu::ConstPtr& msg : batch) handle_imu_locked(*msg);
+        });
+  }
   ros::SubscribeOptions imu_options = ros::SubscribeOptions::create<sensor_msgs::Imu>(
       names::kImuTopic, kImuQueueSize,
       boost::bind(batched ? &CalibrationNode::on_imu_batched : &CalibrationNode::on_imu, this,
@@ -86,10 +90,6 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
            options_.calibrate.analyze ? ", analysis after the fit" : "",
            options_.resume ? ", resume from the checkpoint" : "");
   // Last: nothing after this may throw (a joinable std::thread must not be destroyed).
-  if (batched) {
-    serving_imu_ = true;
-    imu_thread_ = std::thread(&CalibrationNode::serve_imu_batches, this);
-  }
   fit_thread_ = std::thread(&CalibrationNode::fit_loop, this);
 }
 
@@ -99,14 +99,7 @@ CalibrationNode::~CalibrationNode() {
     shutting_down_ = true;  // a fit still running is finished and discarded
   }
   imu_sub_.shutdown();
-  if (imu_thread_.joinable()) {
-    {
-      std::lock_guard<std::mutex> lock(imu_batch_mutex_);
-      serving_imu_ = false;
-    }
-    imu_batch_cv_.notify_all();
-    imu_thread_.join();
-  }
+  imu_batcher_.reset();  // joins its thread; messages not yet handled are dropped
   for (ros::Subscriber& sub : channel_subs_) sub.shutdown();
   command_sub_.shutdown();
   timer_.stop();
@@ -123,44 +116,9 @@ CalibrationNode::~CalibrationNode() {
 // ---- Inputs ------------------------------------------------------------------------------------
 
 void CalibrationNode::on_imu_batched(const sensor_msgs::Imu::ConstPtr& msg) {
-  bool wake = false;
-  {
-    std::lock_guard<std::mutex> lock(imu_batch_mutex_);
-    if (imu_batch_.size() >= kImuQueueSize) {
-      // As roscpp's full subscriber queue: a stalled IMU thread does not grow memory forever.
-      ROS_WARN_THROTTLE(5.0, "calibration: the IMU batch is full (%zu messages): dropping messages",
-                        imu_batch_.size());
-      return;
-    }
-    imu_batch_.push_back(msg);
-    wake = imu_thread_idle_ && imu_batch_.size() == 1;
-  }
-  if (wake) imu_batch_cv_.notify_one();
-}
-
-void CalibrationNode::serve_imu_batches() {
-  // Waits for the first message after an idle spell, handles what is there, then naps so that
-  // the next ones pile up: one wake-up per imu_batch_s at most, one lock of the node per batch.
-  const auto nap = std::chrono::duration<double>(options_.imu_batch_s);
-  std::vector<sensor_msgs::Imu::ConstPtr> batch;
-  while (serving_imu_) {
-    {
-      std::unique_lock<std::mutex> lock(imu_batch_mutex_);
-      if (imu_batch_.empty()) {
-        imu_thread_idle_ = true;
-        imu_batch_cv_.wait_for(lock, std::chrono::milliseconds(100),
-                               [this] { return !imu_batch_.empty() || !serving_imu_; });
-        imu_thread_idle_ = false;
-      }
-      batch.swap(imu_batch_);  // the publisher appends to the emptied vector's capacity
-    }
-    if (!batch.empty()) {
-      std::lock_guard<std::recursive_mutex> lock(mutex_);
-      last_activity_ = ros::WallTime::now();
-      for (const sensor_msgs::Imu::ConstPtr& msg : batch) handle_imu_locked(*msg);
-    }
-    batch.clear();  // the messages are released in this thread, not in the publisher's
-    if (serving_imu_) std::this_thread::sleep_for(nap);
+  if (!imu_batcher_->push(msg)) {
+    ROS_WARN_THROTTLE(5.0, "calibration: the IMU batch is full (%zu messages): dropping messages",
+                      imu_batcher_->capacity());
   }
 }
 

@@ -36,6 +36,7 @@
 #include "accel_intrinsics/io/checkpoint.h"
 #include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/ros/immediate_callback_queue.h"
+#include "accel_intrinsics/ros/message_batcher.h"
 
 namespace accel_intrinsics {
 
@@ -96,7 +97,7 @@ class CalibrationNode {
  private:
   void on_command(const GimbalCommand::ConstPtr& msg) { handle_command(*msg); }
   void on_imu(const sensor_msgs::Imu::ConstPtr& msg) { handle_imu(*msg); }
-  void on_imu_batched(const sensor_msgs::Imu::ConstPtr& msg);  // appends to imu_batch_
+  void on_imu_batched(const sensor_msgs::Imu::ConstPtr& msg);  // hands it to imu_batcher_
   void handle_imu_locked(const sensor_msgs::Imu& msg);          // handle_imu under mutex_
   void on_progress(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg);
   void on_timer(const ros::TimerEvent&);
@@ -136,7 +137,6 @@ class CalibrationNode {
     ros::Time stamp;
   };
   void fit_loop();
-  void serve_imu_batches();  // the IMU thread (immediate_imu false, imu_batch_s > 0)
 
   ros::NodeHandle nh_, pnh_;
   CalibrationOptions options_;
@@ -144,15 +144,10 @@ class CalibrationNode {
   // (immediate_imu) while commands, the timer and the services run on the spinner thread.
   mutable std::recursive_mutex mutex_;
   ImmediateCallbackQueue immediate_queue_;
-  // The IMU messages waiting for the IMU thread (imu_batch_s > 0): roscpp's per-message queue
-  // hand-off (entries, locks and reference counts shared by two threads) costs more than the
-  // node's own work at 50 kHz; a vector of pointers swapped once per period does not.
-  std::mutex imu_batch_mutex_;
-  std::condition_variable imu_batch_cv_;
-  std::vector<sensor_msgs::Imu::ConstPtr> imu_batch_;
-  bool imu_thread_idle_ = false;  // the IMU thread waits for a first message (under the mutex)
-  std::thread imu_thread_;
-  std::atomic<bool> serving_imu_{false};
+  // roscpp's queue of the IMU subscription, and the bound of the IMU thread's batch.
+  static constexpr std::size_t kImuQueueSize = 20000;
+  // The IMU messages on their way to the IMU thread (immediate_imu false, imu_batch_s > 0).
+  std::unique_ptr<MessageBatcher<sensor_msgs::Imu>> imu_batcher_;
   core::CalibrationRun run_;
   io::CheckpointFiles files_;
   ros::Subscriber command_sub_, imu_sub_, progress_sub_;
