@@ -72,14 +72,8 @@ void validate(const SimulationOptions& options) {
     throw std::invalid_argument(
         "simulation: dwell_s * rate_hz must give at least two samples per dwell");
   }
-  for (double v : {options.bias_gm_sigma, options.bias_gm_tau_s, options.bias_random_walk}) {
-    if (!std::isfinite(v) || v < 0.0)
-      throw std::invalid_argument(
-          "simulation: bias_gm_sigma, bias_gm_tau_s and bias_random_walk must be finite and "
-          "non-negative");
-  }
-  if (options.bias_gm_sigma > 0.0 && !(options.bias_gm_tau_s > 0.0))
-    throw std::invalid_argument("simulation: bias_gm_sigma needs a positive bias_gm_tau_s");
+  SlowBiasProcess::validate(options.bias_gm_sigma, options.bias_gm_tau_s, options.bias_random_walk,
+                            "simulation: ", {"bias_gm_sigma", "bias_gm_tau_s", "bias_random_walk"});
   if (!options.noise_scale.allFinite() || options.noise_scale.minCoeff() < 0.0) {
     throw std::invalid_argument("simulation: noise_scale must be finite and non-negative");
   }
@@ -155,14 +149,31 @@ Eigen::Vector3d SlowBiasProcess::advance(double dt_s) {
 }
 
 NoiseModel true_noise_model(const SimulationOptions& options) {
-  NoiseModel m = white_noise_model(sample_noise_stds(options), options.rate_hz);
-  for (int s = 0; s < 3; ++s) {
-    m.axes[s].gm_sigma = options.bias_gm_sigma;
-    m.axes[s].gm_tau_s = options.bias_gm_sigma > 0.0 ? options.bias_gm_tau_s : 0.0;
-    m.axes[s].rw_density = options.bias_random_walk;
+  return SlowBiasProcess::add_to(white_noise_model(sample_noise_stds(options), options.rate_hz),
+                                 options.bias_gm_sigma, options.bias_gm_tau_s,
+                                 options.bias_random_walk);
+}
+
+void SlowBiasProcess::validate(double gm_sigma, double gm_tau_s, double random_walk,
+                               const std::string& prefix, const std::array<std::string, 3>& names) {
+  for (double v : {gm_sigma, gm_tau_s, random_walk}) {
+    if (!std::isfinite(v) || v < 0.0)
+      throw std::invalid_argument(prefix + names[0] + ", " + names[1] + " and " + names[2] +
+                                  " must be finite and >= 0");
   }
-  m.source = "simulation truth";
-  return m;
+  if (gm_sigma > 0.0 && !(gm_tau_s > 0.0))
+    throw std::invalid_argument(prefix + names[0] + " needs a positive " + names[1]);
+}
+
+NoiseModel SlowBiasProcess::add_to(NoiseModel white, double gm_sigma, double gm_tau_s,
+                                   double random_walk) {
+  for (int s = 0; s < 3; ++s) {
+    white.axes[s].gm_sigma = gm_sigma;
+    white.axes[s].gm_tau_s = gm_sigma > 0.0 ? gm_tau_s : 0.0;
+    white.axes[s].rw_density = random_walk;
+  }
+  white.source = "simulation truth";
+  return white;
 }
 
 double TemperatureProfile::at(double t_s) const {

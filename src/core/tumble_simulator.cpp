@@ -34,6 +34,12 @@ Eigen::Vector3d slerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double
   return (std::sin((1.0 - s) * angle) * a + std::sin(s * angle) * b) / std::sin(angle);
 }
 
+// The white noise's standard deviation per sample and axis: a one-sided density over the
+// Nyquist band rate_hz / 2, scaled per axis.
+Eigen::Vector3d sample_noise_stds(const TumbleSimulationOptions& o) {
+  return o.noise_scale * (o.noise_density * std::sqrt(o.rate_hz / 2.0));
+}
+
 }  // namespace
 
 void validate(const TumbleSimulationOptions& o) {
@@ -58,13 +64,9 @@ void validate(const TumbleSimulationOptions& o) {
   if (!(o.min_turn_deg >= 0.0 && o.min_turn_deg <= 150.0))
     throw std::invalid_argument("tumble simulation: min_turn_deg must be in [0, 150]");
   if (o.poses < 1) throw std::invalid_argument("tumble simulation: poses must be >= 1");
-  for (double v : {o.bias_gm_sigma, o.bias_gm_tau_s, o.bias_random_walk})
-    if (!(std::isfinite(v) && v >= 0.0))
-      throw std::invalid_argument(
-          "tumble simulation: bias_gm_sigma, bias_gm_tau_s and bias_random_walk must be finite "
-          "and >= 0");
-  if (o.bias_gm_sigma > 0.0 && !(o.bias_gm_tau_s > 0.0))
-    throw std::invalid_argument("tumble simulation: bias_gm_sigma needs a positive bias_gm_tau_s");
+  SlowBiasProcess::validate(o.bias_gm_sigma, o.bias_gm_tau_s, o.bias_random_walk,
+                            "tumble simulation: ",
+                            {"bias_gm_sigma", "bias_gm_tau_s", "bias_random_walk"});
   for (const Eigen::Vector3d& u : o.up_directions)
     if (!(u.norm() > 0.0) || !u.allFinite())
       throw std::invalid_argument("tumble simulation: an up direction is zero or not finite");
@@ -75,7 +77,7 @@ TumbleRecording simulate_hand_tumble(const TumbleSimulationOptions& o) {
   std::mt19937_64 rng(o.seed);
   std::normal_distribution<double> normal(0.0, 1.0);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
-  const Eigen::Vector3d sigma = o.noise_scale * (o.noise_density * std::sqrt(o.rate_hz / 2.0));
+  const Eigen::Vector3d sigma = sample_noise_stds(o);
   const double dt = 1.0 / o.rate_hz;
   const int poses = o.up_directions.empty() ? o.poses : static_cast<int>(o.up_directions.size());
 
@@ -145,15 +147,9 @@ TumbleRecording simulate_hand_tumble(const TumbleSimulationOptions& o) {
 }
 
 NoiseModel true_noise_model(const TumbleSimulationOptions& o) {
-  const Eigen::Vector3d sigma = o.noise_scale * (o.noise_density * std::sqrt(o.rate_hz / 2.0));
-  NoiseModel m = white_noise_model(sigma, o.rate_hz);
-  for (int s = 0; s < 3; ++s) {
-    m.axes[s].gm_sigma = o.bias_gm_sigma;
-    m.axes[s].gm_tau_s = o.bias_gm_sigma > 0.0 ? o.bias_gm_tau_s : 0.0;
-    m.axes[s].rw_density = o.bias_random_walk;
-  }
-  m.source = "simulation truth";
-  return m;
+  const Eigen::Vector3d sigma = sample_noise_stds(o);
+  return SlowBiasProcess::add_to(white_noise_model(sigma, o.rate_hz), o.bias_gm_sigma,
+                                 o.bias_gm_tau_s, o.bias_random_walk);
 }
 
 Device random_tumble_device(std::uint64_t seed, double responsivity_spread,

@@ -37,12 +37,8 @@ void SimulatedAccelerometerOptions::validate() const {
     throw std::invalid_argument("local_gravity must be in (0, 100] m/s^2");
   if (!std::isfinite(temperature_reference_c))
     throw std::invalid_argument("temperature/reference_c must be finite");
-  for (double v : {bias_gm_sigma, bias_gm_tau_s, bias_random_walk})
-    if (!std::isfinite(v) || v < 0.0)
-      throw std::invalid_argument("bias/gm_sigma, bias/gm_tau_s and bias/random_walk must be "
-                                  "finite and >= 0");
-  if (bias_gm_sigma > 0.0 && !(bias_gm_tau_s > 0.0))
-    throw std::invalid_argument("bias/gm_sigma needs a positive bias/gm_tau_s");
+  core::SlowBiasProcess::validate(bias_gm_sigma, bias_gm_tau_s, bias_random_walk, "",
+                                  {"bias/gm_sigma", "bias/gm_tau_s", "bias/random_walk"});
   // The profile's own checks (simulator.h), with a run that satisfies the others.
   core::SimulationOptions sim;
   sim.temperature = temperature;

@@ -3,8 +3,10 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "accel_intrinsics/core/constants.h"
@@ -82,6 +84,17 @@ class SlowBiasProcess {
   Eigen::Vector3d value();
   // Moves the processes on by dt_s >= 0 seconds and returns the bias then.
   Eigen::Vector3d advance(double dt_s);
+
+  // The parameters' checks, one definition for every place that configures a slow bias: each
+  // finite and >= 0, a Gauss-Markov sigma with a positive time. Throws std::invalid_argument
+  // starting with `prefix` and naming the parameters as the caller's users spell them
+  // ({"bias_gm_sigma", ...} in a simulation, {"bias/gm_sigma", ...} as ROS parameters).
+  static void validate(double gm_sigma, double gm_tau_s, double random_walk,
+                       const std::string& prefix, const std::array<std::string, 3>& names);
+  // `white` with this bias's slow part on every axis: what an estimate from a long rest should
+  // find (the simulators' true_noise_model).
+  static NoiseModel add_to(NoiseModel white, double gm_sigma, double gm_tau_s,
+                           double random_walk);
 
  private:
   double gm_sigma_, gm_tau_s_, random_walk_;
