@@ -2,38 +2,12 @@
 #include <diagnostic_msgs/DiagnosticStatus.h>
 #include <std_srvs/Trigger.h>
 
-#include <map>
-#include <mutex>
-
 #include "stand_checks.h"
+#include "wait_for.h"
 
 namespace {
-std::mutex mutex;
-std::map<std::string, std::string> progress;
-void on_progress(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
-  std::lock_guard<std::mutex> lock(mutex);
-  for (const auto& kv : msg->values) progress[kv.key] = kv.value;
-}
-std::string progress_value(const std::string& key) {
-  std::lock_guard<std::mutex> lock(mutex);
-  return progress[key];
-}
-std::map<std::string, std::string> status;  // calibration/status, latched
-void on_status(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
-  std::lock_guard<std::mutex> lock(mutex);
-  for (const auto& kv : msg->values) status[kv.key] = kv.value;
-}
-std::string status_value(const std::string& key) {
-  std::lock_guard<std::mutex> lock(mutex);
-  return status[key];
-}
-// Waits (wall clock, a generous bound) until `done` holds; returns whether it did.
-template <typename Done>
-bool wait_for(Done done, double limit_s = 60.0) {
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(limit_s);
-  while (!done() && ros::WallTime::now() < deadline) ros::WallDuration(0.05).sleep();
-  return done();
-}
+test_wait::LatestValues progress_value;  // gimbal_controller/progress
+test_wait::LatestValues status_value;    // calibration/status, latched
 }  // namespace
 
 TEST(ServiceBeforeCompletion, NamesTheMissingPhase) {
@@ -42,8 +16,8 @@ TEST(ServiceBeforeCompletion, NamesTheMissingPhase) {
   double timeout_s = 120.0;
   pnh.getParam("steps", steps);
   pnh.getParam("timeout_s", timeout_s);
-  ros::Subscriber sub = nh.subscribe("/gimbal_controller/progress", 10, on_progress);
-  ros::Subscriber status_sub = nh.subscribe("/calibration/status", 10, on_status);
+  ros::Subscriber sub = nh.subscribe("/gimbal_controller/progress", 10, &test_wait::LatestValues::on_message, &progress_value);
+  ros::Subscriber status_sub = nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status_value);
   ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
   ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(60.0)));
 
@@ -72,7 +46,9 @@ TEST(ServiceBeforeCompletion, NamesTheMissingPhase) {
   }
   ASSERT_EQ(progress_value("phase"), "y") << "the gimbal never reached phase y";
   // Past the reorder window of the dwells before: the node has released phase x's dwells.
-  ASSERT_TRUE(wait_for([&] { return status_value("dwells_x") == std::to_string(steps); }))
+  ASSERT_TRUE(test_wait::wait_for(
+      [&] { return status_value("dwells_x") == std::to_string(steps); }, 60.0,
+      "calibration/status to count the phase x dwells"))
       << "dwells_x " << status_value("dwells_x");
 
   r = stand_checks::get_intrinsics("");
@@ -89,7 +65,8 @@ TEST(ServiceBeforeCompletion, NamesTheMissingPhase) {
   ASSERT_TRUE(ros::service::call("/gimbal_controller/abort", abort));
   EXPECT_TRUE(abort.response.success) << abort.response.message;
   // The abort reaches the calibration node (its run is ABORTED), waited for, not slept.
-  ASSERT_TRUE(wait_for([] { return status_value("state") == "ABORTED"; }))
+  ASSERT_TRUE(test_wait::wait_for([] { return status_value("state") == "ABORTED"; }, 60.0,
+                                  "calibration/status ABORTED"))
       << "calibration state " << status_value("state");
   r = stand_checks::get_intrinsics("");
   EXPECT_FALSE(r.success);

@@ -29,16 +29,7 @@ void on_command(const GimbalCommand::ConstPtr& msg) {
   commands.push_back(*msg);
 }
 bool exists(const std::string& path) { return ::access(path.c_str(), F_OK) == 0; }
-// The latest calibration/status.
-std::map<std::string, std::string> status;
-void on_status(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
-  std::lock_guard<std::mutex> lock(mutex);
-  for (const auto& kv : msg->values) status[kv.key] = kv.value;
-}
-std::string status_value(const std::string& key) {
-  std::lock_guard<std::mutex> lock(mutex);
-  return status[key];
-}
+test_wait::LatestValues status_value;  // the latest calibration/status
 
 accel_intrinsics::GetIntrinsics::Response wait_for_result(double timeout_s) {
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
@@ -78,7 +69,7 @@ TEST(StandPromises, ResumeParamsStartTheRunThereAndResetDeletesTheCheckpoint) {
   pnh.getParam("resume_step", resume_step);
   pnh.getParam("timeout_s", timeout_s);
   ros::Subscriber c = nh.subscribe("/gimbal/command", 1000, on_command);
-  ros::Subscriber st = nh.subscribe("/calibration/status", 10, on_status);
+  ros::Subscriber st = nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status_value);
   stand_checks::reset_and_start();
   if (HasFatalFailure()) return;
   const std::string table = output_dir + "/position_table.csv";

@@ -3,16 +3,39 @@
 //   ASSERT_TRUE(test_wait::wait_for([&] { return ...; }, 30.0, "the node's status after reset"));
 #pragma once
 
+#include <diagnostic_msgs/DiagnosticStatus.h>
 #include <gtest/gtest.h>
 #include <ros/master.h>
 #include <ros/network.h>
 #include <ros/ros.h>
 #include <xmlrpcpp/XmlRpcClient.h>
 
+#include <map>
+#include <mutex>
 #include <set>
 #include <string>
 
 namespace test_wait {
+
+// The latest value of each key of a DiagnosticStatus topic (calibration/status, the controller's
+// progress): filled in roscpp's callback thread, read by the test's conditions; "" for a key not
+// seen yet. Subscribe with nh.subscribe(topic, 10, &LatestValues::on_message, &values).
+class LatestValues {
+ public:
+  void on_message(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& kv : msg->values) values_[kv.key] = kv.value;
+  }
+  std::string operator()(const std::string& key) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto it = values_.find(key);
+    return it == values_.end() ? "" : it->second;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::map<std::string, std::string> values_;
+};
 
 // Polls `done()` every period_s until it returns true, or fails after timeout_s of wall time.
 template <class Condition>
