@@ -308,7 +308,7 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
       }
     }
   }
-  accept_rows(assembler_.add_command(event));
+  accept_rows(source_.add_command(event));
   if (event.state == GimbalState::Done) {
     done_pending_ = true;
     done_stamp_s_ = event.stamp_s;
@@ -325,7 +325,7 @@ RunActions CalibrationRun::on_sample(const ImuSample& received) {
   ImuSample sample = received;
   sample.stamp_s += options_.imu_time_offset_s;
   if (sample.stamp_s > newest_sample_stamp_s_) newest_sample_stamp_s_ = sample.stamp_s;
-  const CompletedRows rows = assembler_.add_sample(sample);
+  const CompletedRows rows = source_.add_sample(sample);
   clock_check_.add_sample(sample);
   if (!rows.empty()) accept_rows(rows);
   const AssemblerCounters& c = assembler_.counters();
@@ -339,7 +339,7 @@ RunActions CalibrationRun::on_sample(const ImuSample& received) {
 RunActions CalibrationRun::on_channel_sample(const ChannelSample& received) {
   ChannelSample reading = received;
   reading.stamp_s += options_.imu_time_offset_s;  // the IMU's clock
-  accept_rows(assembler_.add_channel_sample(reading));
+  accept_rows(source_.add_channel_sample(reading));
   return take_actions();
 }
 

@@ -14,12 +14,12 @@
 //                                       Abort           ask the gimbal controller to abort
 //                                                       (only from tick())
 //
-// What it owns: the dwell assembler (samples -> dwells, DESIGN.md section 2), the position table
-// of accepted rows, the raw samples of the run's first dwell (its long rest, for the noise model:
-// DESIGN.md section 12), the watchdogs (no samples during a dwell, too few samples, a dwell with
-// none), retries of a faulty position (rewind the controller; rows measured before its new
-// MOVING are discarded: "blackouts"), resume after a restart (from a checkpoint, or of the
-// gimbal controller), and the decision when to fit.
+// What it owns: the dwell assembler (samples -> dwells, DESIGN.md section 2), fed through the
+// commanded dwell source, the position table of accepted rows, the raw samples of the run's first
+// dwell (its long rest, for the noise model: DESIGN.md section 12), the watchdogs (no samples
+// during a dwell, too few samples, a dwell with none), retries of a faulty position (rewind the
+// controller; rows measured before its new MOVING are discarded: "blackouts"), resume after a
+// restart (from a checkpoint, or of the gimbal controller), and the decision when to fit.
 //
 // Time: every stamp and `now_s` is in seconds of the stand's clock (ROS time; simulated time
 // under /clock). Thread safety: none; the shell serializes calls.
@@ -36,6 +36,7 @@
 
 #include "accel_intrinsics/core/clock_check.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
+#include "accel_intrinsics/core/dwell_source.h"
 #include "accel_intrinsics/core/noise.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/raw_stream_analysis.h"
@@ -303,6 +304,9 @@ class CalibrationRun {
 
   RunOptions options_;
   DwellAssembler assembler_;
+  // Gimbal commands bound the dwells (core/dwell_source.h); the run keeps the assembler for its
+  // own bookkeeping (flushes, restarts, counters).
+  CommandedDwellSource source_{&assembler_};
   MoveSampleRecorder moves_;
   LongRestRecorder long_rest_;
   ClockCheck clock_check_;
