@@ -311,7 +311,9 @@ ProtocolActions GimbalProtocol::tick(double now_s) {
       }
       break;
     case ProtocolState::Dwelling:
-      if (now_s - state_since_s_ >= options_.protocol.dwell_s) {
+      // The first position's dwell is the long rest (initial_rest_s), also when a rewind
+      // measures it again.
+      if (now_s - state_since_s_ >= dwell_duration_s(options_.protocol, index_)) {
         if (index_ + 1 < schedule_.size()) {
           const Phase from = schedule_[index_].phase;
           begin_move(index_ + 1, now_s, &out);

@@ -64,6 +64,10 @@ std::uint32_t scheduled_positions_per_phase(const ProtocolOptions& options) {
   return n * (options.two_way ? 2u : 1u) + (options.closing_position ? 1u : 0u);
 }
 
+double dwell_duration_s(const ProtocolOptions& options, std::size_t index) {
+  return index == 0 ? std::max(options.dwell_s, options.initial_rest_s) : options.dwell_s;
+}
+
 std::vector<ScheduledPosition> build_schedule(const ProtocolOptions& options) {
   validate(options);
   const std::uint32_t n = options.steps_per_phase;
@@ -94,7 +98,7 @@ std::vector<ScheduledPosition> build_schedule(const ProtocolOptions& options) {
       t += first_of_phase ? options.phase_change_s : options.move_s;
       t += options.settle_s;
       position.settled_s = t;
-      t += schedule.empty() ? std::max(options.dwell_s, options.initial_rest_s) : options.dwell_s;
+      t += dwell_duration_s(options, schedule.size());
       position.dwell_end_s = t;
       schedule.push_back(position);
       first_of_phase = false;

@@ -152,10 +152,13 @@ void expect_sweep(const std::vector<GimbalEvent>& commands, std::size_t from,
 }
 
 TEST(GimbalProtocol, NormalSweepVisitsTheThreePhasesInOrder) {
-  for (int variant = 0; variant < 3; ++variant) {
+  for (int variant = 0; variant < 4; ++variant) {
     GimbalProtocolOptions o = test_options();
     o.protocol.two_way = variant == 1;
     o.protocol.closing_position = variant == 2;
+    // Variant 3: a long rest at the first position (the noise model's, initial_rest_s).
+    const double first_dwell_s = 10.0 * o.protocol.dwell_s + 0.3;
+    if (variant == 3) o.protocol.initial_rest_s = first_dwell_s;
     Shell shell(o);
     const std::vector<ScheduledPosition>& schedule = shell.protocol.schedule();
     const double started_s = shell.now_s;
@@ -181,10 +184,12 @@ TEST(GimbalProtocol, NormalSweepVisitsTheThreePhasesInOrder) {
       // MOVING is stamped when the move was issued; SETTLED when the gimbal says it settled.
       EXPECT_EQ(shell.commands[2 * i].stamp_s, shell.gimbal.moves[i].t_s) << i;
       EXPECT_EQ(shell.commands[2 * i + 1].stamp_s, shell.gimbal.moves[i].settles_s) << i;
-      // The dwell lasts dwell_s (to within one tick of the shell's timer).
+      // The dwell lasts dwell_s (to within one tick of the shell's timer), the first one the
+      // long rest when there is one.
       const double dwell_s = shell.commands[2 * i + 2].stamp_s - shell.commands[2 * i + 1].stamp_s;
-      EXPECT_GE(dwell_s, o.protocol.dwell_s - 1e-9) << i;
-      EXPECT_LT(dwell_s, o.protocol.dwell_s + kTick + 1e-9) << i;
+      const double expected_s = variant == 3 && i == 0 ? first_dwell_s : o.protocol.dwell_s;
+      EXPECT_GE(dwell_s, expected_s - 1e-9) << i;
+      EXPECT_LT(dwell_s, expected_s + kTick + 1e-9) << i;
     }
     EXPECT_GE(shell.commands.front().stamp_s, started_s + o.start_delay_s - 1e-9);
     EXPECT_LT(shell.commands.front().stamp_s, started_s + o.start_delay_s + kTick + 1e-9);

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -78,6 +79,11 @@ struct ProtocolOptions {
 
 // Throws std::invalid_argument naming the offending field.
 void validate(const ProtocolOptions& options);
+
+// How long the dwell at position `index` of the schedule lasts: the first one (the long rest)
+// max(dwell_s, initial_rest_s), every other one dwell_s. The schedule, the simulator and the
+// gimbal controller all hold the dwells this long.
+double dwell_duration_s(const ProtocolOptions& options, std::size_t index);
 
 // One visit of the gimbal: where it goes and, on the nominal timeline, when.
 struct ScheduledPosition {
