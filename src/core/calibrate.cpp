@@ -92,6 +92,15 @@ std::string calibration_method(const PositionTable& table) {
   return "gimbal";
 }
 
+CalibrateOptions with_noise_model(CalibrateOptions options,
+                                  const std::optional<NoiseModel>& model) {
+  if (model) {
+    options.fit.noise_model = *model;
+    options.analysis.noise_model = *model;
+  }
+  return options;
+}
+
 CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
                             const CalibrateOptions& options) {
   CalibrationReport report = fit_and_analyze(table, raw, options);

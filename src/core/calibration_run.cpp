@@ -146,9 +146,25 @@ CalibrationRun::CalibrationRun(const RunOptions& options)
 
 void CalibrationRun::connect_assembler() {
   moves_.clear();
-  if (options_.record_moves) {
-    assembler_.set_release_observers([this](const GimbalEvent& e) { moves_.add_command(e); },
-                                     [this](const ImuSample& s) { moves_.add_sample(s); });
+  // Events and samples in stamp order: the moves (timing lag) when asked, the long rest always.
+  const bool record_moves = options_.record_moves;
+  assembler_.set_release_observers(
+      [this, record_moves](const GimbalEvent& e) {
+        if (record_moves) moves_.add_command(e);
+        long_rest_.add_command(e);
+      },
+      [this, record_moves](const ImuSample& s) {
+        if (record_moves) moves_.add_sample(s);
+        long_rest_.add_sample(s);
+      });
+}
+
+std::optional<NoiseModel> CalibrationRun::noise_model(std::string* why) const {
+  try {
+    return long_rest_.noise_model(table_, 0.0);
+  } catch (const std::invalid_argument& e) {
+    if (why != nullptr) *why = e.what();
+    return std::nullopt;
   }
 }
 
@@ -197,6 +213,18 @@ void CalibrationRun::emit_fit() {
     a.move_samples = moves_.samples();
   }
   a.counters = counters();
+  std::string why_not;
+  a.noise_model = noise_model(&why_not);
+  if (a.noise_model) {
+    std::ostringstream m;
+    m << "noise model " << a.noise_model->kind() << " from " << a.noise_model->source << " ("
+      << a.noise_model->rest_samples << " samples)";
+    if (long_rest_.samples_dropped() > 0)
+      m << "; " << long_rest_.samples_dropped() << " later samples of the rest not kept";
+    log(RunAction::Level::Info, m.str());
+  } else if (!why_not.empty()) {
+    log(RunAction::Level::Warn, "no noise model from the long rest (white weights): " + why_not);
+  }
   a.fit_ticket = ++fit_ticket_;
   fitting_ = true;
   apply(RunEvent::FitStarted);
@@ -280,7 +308,7 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
       }
     }
   }
-  accept_rows(assembler_.add_command(event));
+  accept_rows(source_.add_command(event));
   if (event.state == GimbalState::Done) {
     done_pending_ = true;
     done_stamp_s_ = event.stamp_s;
@@ -297,7 +325,7 @@ RunActions CalibrationRun::on_sample(const ImuSample& received) {
   ImuSample sample = received;
   sample.stamp_s += options_.imu_time_offset_s;
   if (sample.stamp_s > newest_sample_stamp_s_) newest_sample_stamp_s_ = sample.stamp_s;
-  const CompletedRows rows = assembler_.add_sample(sample);
+  const CompletedRows rows = source_.add_sample(sample);
   clock_check_.add_sample(sample);
   if (!rows.empty()) accept_rows(rows);
   const AssemblerCounters& c = assembler_.counters();
@@ -311,7 +339,7 @@ RunActions CalibrationRun::on_sample(const ImuSample& received) {
 RunActions CalibrationRun::on_channel_sample(const ChannelSample& received) {
   ChannelSample reading = received;
   reading.stamp_s += options_.imu_time_offset_s;  // the IMU's clock
-  accept_rows(assembler_.add_channel_sample(reading));
+  accept_rows(source_.add_channel_sample(reading));
   return take_actions();
 }
 
@@ -550,6 +578,7 @@ RunActions CalibrationRun::reset(const std::string& reason) {
   const std::size_t dwells = table_.rows.size();
   assembler_.reset();
   clock_check_.reset();
+  long_rest_.clear();
   connect_assembler();
   done_pending_ = false;
   fitting_ = false;
@@ -689,6 +718,9 @@ void CalibrationRun::restart_assembler() {
   }
   assembler_.reset();
   connect_assembler();  // also clears the recorded moves: the lag uses those after the rewind
+  // A fault before any row was accepted is in the first dwell (or before it): the rewound
+  // protocol measures the long rest again. After that the rest is an accepted row: keep it.
+  if (table_.rows.empty()) long_rest_.clear();
   warned_ = AssemblerCounters();
   live_in_dwell_ = false;
   announced_.clear();
@@ -704,6 +736,8 @@ void CalibrationRun::begin_resume(const std::string& cause) {
   request_after_s_ = -std::numeric_limits<double>::infinity();
   blackouts_.push_back(Blackout());  // everything until the rewound MOVING
   moves_.clear();                    // the lag is estimated on the moves after it
+  // The rewound protocol begins with its long rest again when no row was accepted.
+  if (table_.rows.empty()) long_rest_.clear();
   apply(RunEvent::ResumeRequested);
   if (!table_.rows.empty()) {
     const DwellRecord& last = table_.rows.back();

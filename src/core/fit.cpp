@@ -454,6 +454,20 @@ struct LinearJoint {
   Eigen::Matrix3d S;
   Eigen::Vector3d O;
   Eigen::Matrix<double, 12, 12> covariance;  // unscaled (A^T W A)^-1
+
+  // Accelerometer s's unknowns x = (s_x, s_y, s_z, O_s) and the inverse of their normal matrix
+  // `normal` (named in the error when it is singular) into S, O and the covariance.
+  void store(int s, const Eigen::Vector4d& x, const Eigen::Matrix4d& normal, const char* fit_name) {
+    std::vector<std::string> names;
+    for (int c = 0; c < 3; ++c) names.push_back(linear_parameter_name(3 * s + c));
+    names.push_back(linear_parameter_name(9 + s));
+    const Eigen::Matrix4d inv = checked_inverse(normal, names, fit_name);
+    S.row(s) = x.head<3>().transpose();
+    O(s) = x(3);
+    const int idx[4] = {3 * s, 3 * s + 1, 3 * s + 2, 9 + s};
+    for (int a = 0; a < 4; ++a)
+      for (int c = 0; c < 4; ++c) covariance(idx[a], idx[c]) = inv(a, c);
+  }
 };
 
 // Per accelerometer s: unknowns (s_x, s_y, s_z, O_s), one equation per row,
@@ -481,17 +495,8 @@ LinearJoint solve_joint_linear(const PositionTable& table, const std::vector<Eig
   LinearJoint out;
   out.covariance.setZero();
   for (int s = 0; s < 3; ++s) {
-    std::vector<std::string> names;
-    for (int c = 0; c < 3; ++c) names.push_back(linear_parameter_name(3 * s + c));
-    names.push_back(linear_parameter_name(9 + s));
-    const Eigen::Matrix4d inv = checked_inverse(N[s], names, "joint fit");
     // Solve with the pivoted LDLT rather than multiply by the inverse: exact data stay exact.
-    const Eigen::Vector4d x = N[s].ldlt().solve(b[s]);
-    out.S.row(s) = x.head<3>().transpose();
-    out.O(s) = x(3);
-    const int idx[4] = {3 * s, 3 * s + 1, 3 * s + 2, 9 + s};
-    for (int a = 0; a < 4; ++a)
-      for (int c = 0; c < 4; ++c) out.covariance(idx[a], idx[c]) = inv(a, c);
+    out.store(s, N[s].ldlt().solve(b[s]), N[s], "joint fit");
   }
   return out;
 }
@@ -515,17 +520,8 @@ LinearJoint solve_joint_gls(const PositionTable& table, const std::vector<Eigen:
     }
     corr.L[s].triangularView<Eigen::Lower>().solveInPlace(A);
     corr.L[s].triangularView<Eigen::Lower>().solveInPlace(y);
-    const Eigen::Matrix4d N = A.transpose() * A;
-    std::vector<std::string> names;
-    for (int c = 0; c < 3; ++c) names.push_back(linear_parameter_name(3 * s + c));
-    names.push_back(linear_parameter_name(9 + s));
-    const Eigen::Matrix4d inv = checked_inverse(N, names, "joint fit (generalized least squares)");
-    const Eigen::Vector4d x = A.colPivHouseholderQr().solve(y);
-    out.S.row(s) = x.head<3>().transpose();
-    out.O(s) = x(3);
-    const int idx[4] = {3 * s, 3 * s + 1, 3 * s + 2, 9 + s};
-    for (int a = 0; a < 4; ++a)
-      for (int c = 0; c < 4; ++c) out.covariance(idx[a], idx[c]) = inv(a, c);
+    out.store(s, A.colPivHouseholderQr().solve(y), A.transpose() * A,
+              "joint fit (generalized least squares)");
   }
   return out;
 }

@@ -6,6 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "accel_intrinsics/core/dwell_source.h"
+
 namespace accel_intrinsics {
 namespace core {
 namespace {
@@ -430,12 +432,22 @@ RestDetection detect_rests(const std::vector<ImuSample>& samples,
   out.rate_hz = rate;
   out.block_samples = block_samples_for(options.block_s, rate);
   out.quiet_std = quiet_std_of(samples, out.block_samples, options.quiet_quantile);
-  RestDetector detector(options, rate);
-  detector.set_quiet_std(out.quiet_std);
-  for (const ImuSample& s : samples) detector.add(s.stamp_s, s.outputs);
-  detector.finish();
-  out.rests = detector.take_rests();
-  out.rejected = detector.rejected();
+  // The rests as rows of the dwell assembler, through the detected dwell source (one path from
+  // samples to rows for gimbal runs and tumbles alike, DESIGN.md section 2).
+  DwellAssembler assembler;
+  DetectedDwellSource source(&assembler, options, rate);
+  source.set_quiet_std(out.quiet_std);
+  for (const ImuSample& s : samples) {
+    // The source would drop a sample that is not finite (as a live stream does); a file with
+    // one is bad input.
+    if (!std::isfinite(s.stamp_s) || !s.outputs.allFinite())
+      throw std::invalid_argument("rest detection: a sample is not finite");
+    const CompletedRows rows = source.add_sample(s);
+    out.rests.insert(out.rests.end(), rows.begin(), rows.end());
+  }
+  const CompletedRows last = source.finish();
+  out.rests.insert(out.rests.end(), last.begin(), last.end());
+  out.rejected = source.detector().rejected();
   std::sort(out.rejected.begin(), out.rejected.end(),
             [](const RejectedSpan& a, const RejectedSpan& b) { return a.t_start_s < b.t_start_s; });
   out.samples = samples.size();

@@ -30,14 +30,22 @@ void validate(const TumbleSessionOptions& o) {
     throw std::invalid_argument("tumble: target_relative_std must be >= 0 (0: fit when asked)");
 }
 
-TumbleSession::TumbleSession(const TumbleSessionOptions& options)
-    : options_(options), detector_(options.rests) {
+TumbleSession::TumbleSession(const TumbleSessionOptions& options) : options_(options) {
   validate(options_);
+  start();
   update_progress();
 }
 
+void TumbleSession::start() {
+  assembler_.reset();
+  long_rest_.clear();
+  assembler_.set_release_observers([this](const GimbalEvent& e) { long_rest_.add_command(e); },
+                                   [this](const ImuSample& s) { long_rest_.add_sample(s); });
+  source_ = std::make_unique<DetectedDwellSource>(&assembler_, options_.rests);
+}
+
 void TumbleSession::reset() {
-  detector_ = RestDetector(options_.rests);
+  start();
   table_ = PositionTable();
   dropped_ = 0;
   last_t_s_ = -std::numeric_limits<double>::infinity();
@@ -50,32 +58,39 @@ bool TumbleSession::add_sample(double t_s, const Eigen::Vector3d& outputs) {
     return false;
   }
   last_t_s_ = t_s;
-  detector_.add(t_s, outputs);
-  progress_.samples = detector_.samples();
-  progress_.still_s = detector_.current_still_s();
-  return take_new_rests();
+  ImuSample sample;
+  sample.stamp_s = t_s;
+  sample.outputs = outputs;
+  const CompletedRows rests = source_->add_sample(sample);
+  progress_.samples = detector().samples();
+  progress_.still_s = detector().current_still_s();
+  return take_new_rests(rests);
 }
 
-bool TumbleSession::finish() {
-  detector_.finish();
-  return take_new_rests();
-}
+bool TumbleSession::finish() { return take_new_rests(source_->finish()); }
 
-bool TumbleSession::take_new_rests() {
-  std::vector<DwellRecord> rests = detector_.take_rests();
+bool TumbleSession::take_new_rests(const CompletedRows& rests) {
   if (rests.empty()) return false;
   if (table_.rows.empty()) table_.time_origin_s = rests.front().t_start_s;
-  for (DwellRecord& r : rests) table_.rows.push_back(std::move(r));
+  table_.rows.insert(table_.rows.end(), rests.begin(), rests.end());
   update_progress();
   return true;
+}
+
+std::optional<NoiseModel> TumbleSession::noise_model() const {
+  try {
+    return long_rest_.noise_model(table_, 0.0);
+  } catch (const std::invalid_argument&) {
+    return std::nullopt;  // too short a record for a model: white
+  }
 }
 
 void TumbleSession::update_progress() {
   TumbleProgress p;
   p.rests = table_.rows.size();
-  p.rejected = detector_.rejected().size();
-  p.samples = detector_.samples();
-  p.still_s = detector_.current_still_s();
+  p.rejected = detector().rejected().size();
+  p.samples = detector().samples();
+  p.still_s = detector().current_still_s();
   std::ostringstream message;
   if (p.rests >= options_.min_rests) {
     try {
@@ -128,7 +143,7 @@ void TumbleSession::update_progress() {
 }
 
 CalibrationReport TumbleSession::report(const CalibrateOptions& options) const {
-  CalibrateOptions o = options;
+  CalibrateOptions o = with_noise_model(options, noise_model());
   o.fit.local_gravity = options_.local_gravity;
   o.analyze = false;
   return calibrate(table_, nullptr, o);

@@ -262,11 +262,8 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
             // The analysis takes seconds: off the lock, on the worker.
             {
               std::lock_guard<std::mutex> job_lock(job_mutex_);
-              job_ = FitJob{a.fit_ticket,
-                            a.table,
-                            {a.move_commands, a.move_samples},
-                            a.counters,
-                            ros::Time::now()};
+              job_ = FitJob{a.fit_ticket, a.table, {a.move_commands, a.move_samples},
+                            a.counters, ros::Time::now(), a.noise_model};
             }
             job_cv_.notify_one();
             ROS_INFO(
@@ -276,8 +273,8 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
           } else {
             const ros::Time now = ros::Time::now();
             try {
-              const core::CalibrationReport report =
-                  core::calibrate(a.table, nullptr, options_.calibrate);
+              const core::CalibrationReport report = core::calibrate(
+                  a.table, nullptr, core::with_noise_model(options_.calibrate, a.noise_model));
               finish_fit(a.fit_ticket, &report, a.counters, "", now);
             } catch (const std::exception& e) {
               finish_fit(a.fit_ticket, nullptr, a.counters, e.what(), now);
@@ -371,7 +368,8 @@ void CalibrationNode::fit_loop() {
     std::optional<core::CalibrationReport> report;
     std::string error;
     try {
-      report = core::calibrate(job.table, &job.moves, options_.calibrate);
+      report = core::calibrate(job.table, &job.moves,
+                               core::with_noise_model(options_.calibrate, job.noise_model));
     } catch (const std::exception& e) {
       error = e.what();
     }
@@ -423,15 +421,17 @@ bool CalibrationNode::on_analyze(std_srvs::Trigger::Request&, std_srvs::Trigger:
   // On a copy of the table without the lock; applied under the lock unless a reset came.
   core::PositionTable table;
   core::RawStreams moves;
+  std::optional<core::NoiseModel> noise_model;
   std::uint64_t resets = 0, fits = 0;
   {
     std::lock_guard<std::recursive_mutex> lock(mutex_);
     table = run_.table();
     moves = {run_.recorded_moves().commands(), run_.recorded_moves().samples()};
+    noise_model = run_.noise_model();
     resets = resets_;
     fits = fits_published_;
   }
-  core::CalibrateOptions options = options_.calibrate;
+  core::CalibrateOptions options = core::with_noise_model(options_.calibrate, noise_model);
   options.analyze = true;
   try {
     const core::CalibrationReport report = core::calibrate(table, &moves, options);

@@ -630,10 +630,7 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
                                      ? "offline_fit --gravity"
                                      : "standard gravity (offline_fit default; no --gravity given)";
 
-  if (input.noise_model) {
-    options.fit.noise_model = *input.noise_model;
-    options.analysis.noise_model = *input.noise_model;
-  }
+  options = core::with_noise_model(std::move(options), input.noise_model);
   core::CalibrationReport report;
   try {
     const bool raw_usable = input.from_bag && !input.raw.commands.empty();

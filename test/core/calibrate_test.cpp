@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <optional>
 #include <vector>
 
 #include "accel_intrinsics/core/dwell_assembler.h"
@@ -155,6 +156,29 @@ TEST(Calibrate, WithoutAnalysisOnlyTheFitAndAFailedFitThrows) {
                                    [](const DwellRecord& r) { return r.phase == Phase::Y; }),
                     x_only.rows.end());
   EXPECT_THROW(calibrate(x_only, &run.raw, analyzing_options()), FitError);
+}
+
+// with_noise_model (the calibration node and offline_fit hand the run's noise model to both):
+// the fit and the analysis are weighted with it; without one both stay white.
+TEST(Calibrate, WithNoiseModelWeighsTheFitAndTheAnalysis) {
+  SimulationOptions so;
+  so.protocol.steps_per_phase = 8;
+  so.protocol.initial_rest_s = 60.0;
+  so.bias_gm_sigma = 0.002;
+  so.bias_gm_tau_s = 10.0;
+  so.seed = 6;
+  const PositionTable table = simulate_position_table(so);
+  CalibrateOptions options = analyzing_options();
+  options.fit.local_gravity = so.local_gravity;
+  options.analysis.monte_carlo_draws = 500;
+  const CalibrateOptions white = with_noise_model(options, std::nullopt);
+  EXPECT_TRUE(white.fit.noise_model.white());
+  EXPECT_TRUE(white.analysis.noise_model.white());
+  const CalibrationReport report =
+      calibrate(table, nullptr, with_noise_model(options, true_noise_model(so)));
+  EXPECT_FALSE(report.base_fit.noise_model.white());
+  ASSERT_TRUE(report.analysis.has_value()) << report.analysis_error;
+  EXPECT_FALSE(report.analysis->noise_model.white());
 }
 
 }  // namespace

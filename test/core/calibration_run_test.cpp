@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <functional>
+#include <optional>
 #include <set>
 
 #include "accel_intrinsics/core/simulator.h"
@@ -29,7 +30,9 @@ struct StreamEvent {
 
 class FakeStand {
  public:
-  explicit FakeStand(std::uint32_t steps = 4, bool two_way = false) {
+  // `tweak` changes the simulation (a long rest, a slow bias) before it runs.
+  explicit FakeStand(std::uint32_t steps = 4, bool two_way = false,
+                     const std::function<void(SimulationOptions*)>& tweak = {}) {
     SimulationOptions sim;
     sim.protocol.steps_per_phase = steps;
     sim.protocol.two_way = two_way;
@@ -40,6 +43,7 @@ class FakeStand {
     sim.rate_hz = 50.0;
     sim.truth.S = Eigen::Matrix3d::Identity();
     sim.seed = 7;
+    if (tweak) tweak(&sim);
     recording_ = simulate_recording(sim);
     for (const GimbalEvent& c : recording_.commands) all_.push_back({c.stamp_s, true, c, {}});
     for (const ImuSample& s : recording_.samples) all_.push_back({s.stamp_s, false, {}, s});
@@ -152,6 +156,7 @@ class FakeStand {
           break;
         case RunAction::Kind::FitNow:
           fitted_.push_back(a.table);
+          noise_models_.push_back(a.noise_model);
           if (answer_fits_) {
             const bool ok = run->fit_may_publish(a.fit_ticket);
             carry_out(run, run->on_fit_finished(a.fit_ticket, ok, ""));
@@ -230,6 +235,7 @@ class FakeStand {
   int checkpoint_clears_ = 0;
   std::vector<std::string> log_;
   std::vector<PositionTable> fitted_;
+  std::vector<std::optional<NoiseModel>> noise_models_;  // handed out with each FitNow
   std::vector<std::uint64_t> open_tickets_;
   std::vector<ControllerRequest> resumes_;
   std::vector<std::string> aborts_;
@@ -287,6 +293,86 @@ TEST(CalibrationRun, CleanRunEndsWithOneFitOfEveryDwell) {
   EXPECT_EQ(s.dwells_discarded, 0u);
   EXPECT_TRUE(stand.resumes_.empty());
   EXPECT_TRUE(stand.aborts_.empty());
+}
+
+// ---- The noise model of the long rest (DESIGN.md section 12) ---------------------------------
+
+// A 60 s first dwell under a slow bias (Gauss-Markov 0.002 m/s^2, 10 s).
+void long_rest_with_slow_bias(SimulationOptions* so) {
+  so->protocol.initial_rest_s = 60.0;
+  so->bias_gm_sigma = 0.002;
+  so->bias_gm_tau_s = 10.0;
+}
+
+// offline_fit's noise model of a recorded run: noise_model_of_run over every sample it holds.
+std::optional<NoiseModel> offline_noise_model(const PositionTable& table,
+                                              const std::vector<ImuSample>& samples) {
+  std::vector<double> stamps;
+  std::vector<Eigen::Vector3d> outputs;
+  for (const ImuSample& s : samples) {
+    stamps.push_back(s.stamp_s);
+    outputs.push_back(s.outputs);
+  }
+  return noise_model_of_run(table, stamps, outputs);
+}
+
+void expect_same_model(const NoiseModel& a, const NoiseModel& b) {
+  EXPECT_EQ(a.rest_samples, b.rest_samples);
+  EXPECT_EQ(a.source, b.source);
+  for (int s = 0; s < 3; ++s) {
+    EXPECT_EQ(a.axes[s].white_std, b.axes[s].white_std) << s;
+    EXPECT_EQ(a.axes[s].gm_sigma, b.axes[s].gm_sigma) << s;
+    EXPECT_EQ(a.axes[s].gm_tau_s, b.axes[s].gm_tau_s) << s;
+    EXPECT_EQ(a.axes[s].rw_density, b.axes[s].rw_density) << s;
+  }
+}
+
+TEST(CalibrationRun, FitIsHandedTheNoiseModelOfTheLongRest) {
+  // The live run keeps the first dwell's raw samples as they come and hands the fit the noise
+  // model that offline_fit finds in the whole recording of the same run.
+  FakeStand stand(4, false, long_rest_with_slow_bias);
+  CalibrationRun run(options_for(4));
+  stand.play(&run);
+  ASSERT_EQ(run.state(), RunState::Done);
+  ASSERT_EQ(stand.noise_models_.size(), 1u);
+  ASSERT_TRUE(stand.noise_models_[0].has_value());
+  const NoiseModel& live = *stand.noise_models_[0];
+  EXPECT_FALSE(live.white()) << live.kind();
+  const std::optional<NoiseModel> offline =
+      offline_noise_model(stand.fitted_[0], stand.recording_.samples);
+  ASSERT_TRUE(offline.has_value());
+  expect_same_model(live, *offline);
+  EXPECT_GE(live.rest_samples, stand.fitted_[0].rows.front().n);
+  EXPECT_TRUE(log_contains(stand.log_, "noise model " + live.kind() + " from "));
+  // Without a long rest the fit stays white (nothing to estimate from).
+  FakeStand plain;
+  CalibrationRun white_run(options_for(4));
+  plain.play(&white_run);
+  ASSERT_EQ(plain.noise_models_.size(), 1u);
+  EXPECT_FALSE(plain.noise_models_[0].has_value());
+}
+
+TEST(CalibrationRun, LongRestMeasuredAgainAfterAFaultGivesTheNoiseModel) {
+  // The first pass of the long rest keeps 5 samples only: a fault, the protocol rewound to the
+  // first position, the rest measured again. The model is the second rest's (the first one's 5
+  // samples are not in it): offline_fit's model of the accepted rows over the samples played.
+  FakeStand stand(4, false, long_rest_with_slow_bias);
+  stand.keep_first_samples_of(stand.dwell_interval(Phase::X, 0), 5);
+  CalibrationRun run(retrying_options(20));
+  stand.play(&run);
+  ASSERT_EQ(stand.resumes_.size(), 1u);
+  EXPECT_EQ(stand.resumes_[0].step, 0u);
+  ASSERT_EQ(run.state(), RunState::Done);
+  ASSERT_EQ(stand.noise_models_.size(), 1u);
+  ASSERT_TRUE(stand.noise_models_[0].has_value());
+  std::vector<ImuSample> played;
+  for (const StreamEvent& e : stand.stream_) {
+    if (!e.is_command) played.push_back(e.sample);
+  }
+  const std::optional<NoiseModel> offline = offline_noise_model(stand.fitted_[0], played);
+  ASSERT_TRUE(offline.has_value());
+  expect_same_model(*stand.noise_models_[0], *offline);
+  EXPECT_GT(stand.noise_models_[0]->rest_samples, 1000u);
 }
 
 TEST(CalibrationRun, ImuOnAnotherClockFailsWithTheOffsetInsteadOfFitting) {

@@ -15,6 +15,7 @@
 #include "accel_intrinsics/core/tumble_session.h"
 #include "../support/statistical_bounds.h"
 #include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/noise.h"
 #include "accel_intrinsics/core/rest_detection.h"
 #include "accel_intrinsics/core/samples_file.h"
 #include "accel_intrinsics/core/tumble.h"
@@ -124,6 +125,54 @@ TEST(TumbleSession, RestsOneAtATimeTheStartingPosesThenTheFit) {
   const FitResult live = fit(session.table());
   EXPECT_LT((estimate_of(live) - estimate_of(offline)).cwiseAbs().maxCoeff(), 1e-9);
   EXPECT_NEAR(p.next_up.norm(), 1.0, 1e-9);
+}
+
+// A live session whose first rest is 120 s under a slow bias: it keeps that rest's raw samples as
+// they come (the detected dwell source feeds the dwell assembler, whose release observers feed a
+// LongRestRecorder) and weighs its report with their noise model: the model offline_fit's rule
+// gives for the same rests from the whole record. A session without a long rest stays white.
+TEST(TumbleSession, FirstLongRestGivesTheReportItsNoiseModel) {
+  TumbleSimulationOptions o;
+  o.truth = random_tumble_device(9);
+  o.seed = 23;
+  o.initial_rest_s = 120.0;
+  o.bias_gm_sigma = 0.003;
+  o.bias_gm_tau_s = 20.0;
+  const TumbleRecording rec = simulate_hand_tumble(o);
+  TumbleSession session{TumbleSessionOptions()};
+  std::vector<double> stamps;
+  std::vector<Eigen::Vector3d> outputs;
+  for (const ImuSample& sample : rec.samples) {
+    session.add_sample(sample.stamp_s, sample.outputs);
+    stamps.push_back(sample.stamp_s);
+    outputs.push_back(sample.outputs);
+  }
+  session.finish();
+  const std::optional<NoiseModel> live = session.noise_model();
+  const std::optional<NoiseModel> whole = noise_model_of_run(session.table(), stamps, outputs);
+  ASSERT_TRUE(live.has_value());
+  ASSERT_TRUE(whole.has_value());
+  EXPECT_FALSE(live->white());
+  EXPECT_EQ(live->rest_samples, whole->rest_samples);
+  EXPECT_GT(live->rest_samples, static_cast<std::size_t>(100.0 * o.rate_hz));
+  for (int s = 0; s < 3; ++s) {
+    EXPECT_EQ(live->axes[s].white_std, whole->axes[s].white_std) << s;
+    EXPECT_EQ(live->axes[s].gm_sigma, whole->axes[s].gm_sigma) << s;
+    EXPECT_EQ(live->axes[s].gm_tau_s, whole->axes[s].gm_tau_s) << s;
+    EXPECT_EQ(live->axes[s].rw_density, whole->axes[s].rw_density) << s;
+  }
+  const CalibrationReport report = session.report(CalibrateOptions());
+  EXPECT_EQ(report.certificate.noise_model.kind(), live->kind());
+  EXPECT_EQ(report.certificate.noise_model.rest_samples, live->rest_samples);
+
+  TumbleSimulationOptions short_first = o;
+  short_first.initial_rest_s = 5.0;
+  TumbleSession plain{TumbleSessionOptions()};
+  for (const ImuSample& sample : simulate_hand_tumble(short_first).samples)
+    plain.add_sample(sample.stamp_s, sample.outputs);
+  plain.finish();
+  EXPECT_FALSE(plain.noise_model().has_value());
+  EXPECT_TRUE(plain.report(CalibrateOptions()).certificate.noise_model.white());
 }
 
 // The simulator's noise_density is the one-sided density, as the gimbal simulator's: the sample

@@ -73,7 +73,7 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
   ASSERT_TRUE(pnh.getParam("output_dir", output_dir));
   const int kill_phase_index = kill_phase == "x" ? 0 : kill_phase == "y" ? 1 : 2;
   const int kill_position = kill_phase_index * steps + kill_step;  // 0-based, protocol order
-  ros::Subscriber s = nh.subscribe("/calibration/status", 10, on_status);
+  ros::Subscriber s = nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status);
   ros::Subscriber c = nh.subscribe("/gimbal/command", 1000, on_cmd);
   ros::Subscriber i = nh.subscribe("/imu/data_raw", 100000, on_imu);
   stand_checks::reset_and_start();
@@ -87,7 +87,7 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
   // The checkpoint as the killed node leaves it: the run continues after its last row.
   const std::size_t rows_at_kill = checkpoint_rows(output_dir + "/position_table.csv");
   ASSERT_LT(rows_at_kill, static_cast<std::size_t>(kill_position)) << "the cut dwell is not in it";
-  const int pid = node_pid("/calibration");
+  const int pid = test_wait::node_pid("/calibration");
   ASSERT_GT(pid, 1);
   ASSERT_EQ(kill(pid, SIGKILL), 0);
   std::printf("killed /calibration (pid %d) in the dwell of phase %s step %d; checkpoint: %zu rows\n",
@@ -97,7 +97,7 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
   // its subscription to the gimbal commands, connected before the clock runs on.
   bool back = false;
   while (!back && ros::WallTime::now() < deadline) {
-    const int now_pid = node_pid("/calibration");
+    const int now_pid = test_wait::node_pid("/calibration");
     back = now_pid > 1 && now_pid != pid &&
            ros::service::exists("/calibration/get_intrinsics", false) &&
            subscribes("/calibration", "/gimbal/command") && subscribes("/calibration", "/imu/data_raw");
@@ -127,15 +127,15 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
   ASSERT_TRUE(res.success) << res.message;
   // The status after the fit (published with the result), waited for with a generous bound.
   for (const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(60.0);
-       value(status, "state") != "RESULT" && ros::WallTime::now() < end;) {
+       status("state") != "RESULT" && ros::WallTime::now() < end;) {
     ros::WallDuration(0.05).sleep();
   }
-  ASSERT_EQ(value(status, "state"), "RESULT");
-  EXPECT_EQ(value(status, "restored"), "true");
+  ASSERT_EQ(status("state"), "RESULT");
+  EXPECT_EQ(status("restored"), "true");
   // The restarted node saw the MOVING that ended the cut dwell and rewound the controller to the
   // position after its last checkpointed row before the next SETTLED: no dwell measured before
   // the rewind, none discarded.
-  EXPECT_EQ(value(status, "dwells_discarded"), "0");
+  EXPECT_EQ(status("dwells_discarded"), "0");
 
   std::vector<GimbalCommand> cmds;
   std::vector<double> stamps;

@@ -9,12 +9,8 @@
 #include <signal.h>
 #include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
-#include <ros/master.h>
-#include <ros/network.h>
-#include <xmlrpcpp/XmlRpcClient.h>
 #include <yaml-cpp/yaml.h>
 
-#include <map>
 #include <mutex>
 #include <set>
 
@@ -26,24 +22,11 @@
 
 namespace {
 std::mutex mutex;
-std::map<std::string, std::string> progress, status;
-std::uint64_t progress_messages = 0;
+test_wait::LatestValues progress;  // gimbal_controller/progress
+test_wait::LatestValues status;    // calibration/status
 double first_moving_stamp = -1.0;
 accel_intrinsics::GimbalCommand last_command;
 bool have_command = false;
-void on_progress(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
-  std::lock_guard<std::mutex> lock(mutex);
-  for (const auto& kv : msg->values) progress[kv.key] = kv.value;
-  ++progress_messages;
-}
-std::uint64_t progress_count() {
-  std::lock_guard<std::mutex> lock(mutex);
-  return progress_messages;
-}
-void on_status(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
-  std::lock_guard<std::mutex> lock(mutex);
-  for (const auto& kv : msg->values) status[kv.key] = kv.value;
-}
 void on_command(const accel_intrinsics::GimbalCommand::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex);
   if (first_moving_stamp < 0 && msg->state == accel_intrinsics::GimbalCommand::MOVING &&
@@ -71,29 +54,6 @@ bool pause_clock(bool pause, double* at_s = nullptr) {
     *at_s = std::stod(srv.response.message.substr(at + 4));
   }
   return true;
-}
-std::string value(std::map<std::string, std::string>& m, const std::string& key) {
-  std::lock_guard<std::mutex> lock(mutex);
-  return m[key];
-}
-// The pid of a node, from its own XML-RPC API (getPid), as rosnode does.
-int node_pid(const std::string& node) {
-  XmlRpc::XmlRpcValue args, result, payload;
-  args[0] = ros::this_node::getName();
-  args[1] = node;
-  if (!ros::master::execute("lookupNode", args, result, payload, false)) return -1;
-  const std::string uri = static_cast<std::string>(payload);
-  std::string host;
-  std::uint32_t port = 0;
-  if (!ros::network::splitURI(uri, host, port)) return -1;
-  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
-  XmlRpc::XmlRpcValue request, response;
-  request[0] = ros::this_node::getName();
-  if (!client.execute("getPid", request, response) || response.getType() != XmlRpc::XmlRpcValue::TypeArray ||
-      response.size() < 3 || static_cast<int>(response[0]) != 1) {
-    return -1;
-  }
-  return static_cast<int>(response[2]);
 }
 }  // namespace
 
@@ -139,8 +99,8 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   pnh.getParam("hold_clock", hold_clock);
   pnh.getParam("expected_dwells_discarded", expected_discarded);
   ASSERT_TRUE(pnh.getParam("output_dir", output_dir));
-  ros::Subscriber p = nh.subscribe("/gimbal_controller/progress", 10, on_progress);
-  ros::Subscriber s = nh.subscribe("/calibration/status", 10, on_status);
+  ros::Subscriber p = nh.subscribe("/gimbal_controller/progress", 10, &test_wait::LatestValues::on_message, &progress);
+  ros::Subscriber s = nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status);
   ros::Subscriber c = nh.subscribe("/gimbal/command", 100, on_command);
   stand_checks::reset_and_start();
   if (::testing::Test::HasFatalFailure()) return;
@@ -155,23 +115,23 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
     if (::testing::Test::HasFatalFailure()) return;
   } else {
     while (ros::WallTime::now() < deadline) {
-      const std::string position = value(progress, "position");
+      const std::string position = progress("position");
       if (!position.empty() && std::stoi(position) >= kill_at) break;
       ros::WallDuration(0.05).sleep();
     }
-    ASSERT_GE(std::stoi(value(progress, "position")), kill_at);
+    ASSERT_GE(std::stoi(progress("position")), kill_at);
   }
-  const int pid = node_pid(victim);
+  const int pid = test_wait::node_pid(victim);
   ASSERT_GT(pid, 1);
   ASSERT_EQ(kill(pid, SIGKILL), 0);
   std::printf("killed %s (pid %d) at position %s (phase %s step %s)%s\n", victim.c_str(), pid,
-              value(progress, "position").c_str(), value(progress, "phase").c_str(),
-              value(progress, "step").c_str(), hold_clock ? ", clock held in its dwell" : "");
+              progress("position").c_str(), progress("phase").c_str(),
+              progress("step").c_str(), hold_clock ? ", clock held in its dwell" : "");
   if (hold_clock) {
-    const std::uint64_t progress_before = progress_count();
+    const std::uint64_t progress_before = progress.messages();
     bool back = false;
     while (!back && ros::WallTime::now() < deadline) {
-      const int now_pid = node_pid(victim);
+      const int now_pid = test_wait::node_pid(victim);
       back = now_pid > 1 && now_pid != pid;
       if (!back) ros::WallDuration(0.1).sleep();
     }
@@ -193,7 +153,7 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
           for (const std::string& topic : inputs) {
             if (!connected.count(topic)) return false;
           }
-          return calibration || (progress_count() > progress_before &&
+          return calibration || (progress.messages() > progress_before &&
                                  test_wait::connected_inbound_topics("/calibration")
                                      .count("/gimbal_controller/progress"));
         },
@@ -206,7 +166,7 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   accel_intrinsics::GetIntrinsics::Response res;
   bool respawned = false;
   while (ros::WallTime::now() < deadline) {
-    const int now_pid = node_pid(victim);
+    const int now_pid = test_wait::node_pid(victim);
     if (now_pid > 1 && now_pid != pid) respawned = true;
     if (respawned) {
       accel_intrinsics::GetIntrinsics srv;
@@ -220,7 +180,7 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   ASSERT_TRUE(respawned) << victim << " did not come back";
   ASSERT_TRUE(res.success) << res.message;
   // Only a restarted calibration node restores its checkpoint.
-  EXPECT_EQ(value(status, "restored"), victim == "/calibration" ? "true" : "false");
+  EXPECT_EQ(status("restored"), victim == "/calibration" ? "true" : "false");
   for (int i = 0; i < 3; ++i) EXPECT_EQ(res.result.positions[i], static_cast<unsigned>(steps));
 
   // The checkpoint: every position once, in protocol order, and the run's time origin.
@@ -257,8 +217,8 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   ASSERT_TRUE(stand_checks::load_truth("", &truth));
   stand_checks::expect_matches_truth(r, truth, limits, "resumed");
   std::printf("restored run: %s; %s dwells discarded, %s\n", res.message.c_str(),
-              value(status, "dwells_discarded").c_str(), value(status, "last_warning").c_str());
+              status("dwells_discarded").c_str(), status("last_warning").c_str());
   if (expected_discarded >= 0) {
-    EXPECT_EQ(value(status, "dwells_discarded"), std::to_string(expected_discarded));
+    EXPECT_EQ(status("dwells_discarded"), std::to_string(expected_discarded));
   }
 }

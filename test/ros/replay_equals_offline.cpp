@@ -26,6 +26,9 @@ TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
   // budget_node.test: the node has budget_file = this file, offline_fit gets --budget.
   std::string budget;
   pnh.getParam("budget", budget);
+  // noise_model_node.test: the run has a long rest under a slow bias.
+  bool expect_noise_model = false;
+  pnh.getParam("expect_noise_model", expect_noise_model);
   std::remove(bag.c_str());
   std::remove((bag + ".active").c_str());
 
@@ -74,6 +77,15 @@ TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
   EXPECT_EQ(j["positions"]["x"], 6);
   oc::expect_equal(online, j);
   EXPECT_EQ(j.contains("uncertainty_budget"), !budget.empty());
+  // The noise model (compared with the node's below, with the rest of the document): estimated
+  // from the long rest when the run has one, else white.
+  if (expect_noise_model) {
+    ASSERT_TRUE(j["noise_model"].is_object()) << j["noise_model"].dump();
+    EXPECT_NE(j["noise_model"]["kind"], "white");
+    EXPECT_GT(j["noise_model"]["rest"]["samples"].get<int>(), 3000) << j["noise_model"].dump();
+  } else {
+    EXPECT_EQ(j["noise_model"], "white");
+  }
 
   // The node's result file: the same document as offline_fit's JSON (contract keys,
   // fitted_effects, certificate_model, ...), value for value; only stamp and samples (node) and

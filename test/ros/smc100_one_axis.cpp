@@ -1,34 +1,22 @@
 // A one-axis stage on an SMC100 with manual remounts: see test/ros/smc100_one_axis.test.
-#include <diagnostic_msgs/DiagnosticStatus.h>
 #include <std_srvs/Trigger.h>
 
-#include <map>
 #include <mutex>
 
 #include "accel_intrinsics/GimbalCommand.h"
 #include "serial_checks.h"
 #include "stand_checks.h"
+#include "wait_for.h"
 
 namespace {
 
 std::mutex mutex;
-std::map<std::string, std::string> progress;
+test_wait::LatestValues progress;  // gimbal_controller/progress
 std::vector<accel_intrinsics::GimbalCommand> commands;
-
-void on_progress(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
-  std::lock_guard<std::mutex> lock(mutex);
-  for (const auto& kv : msg->values) progress[kv.key] = kv.value;
-  progress["_message"] = msg->message;
-}
 
 void on_command(const accel_intrinsics::GimbalCommand::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex);
   commands.push_back(*msg);
-}
-
-std::string progress_value(const std::string& key) {
-  std::lock_guard<std::mutex> lock(mutex);
-  return progress[key];
 }
 
 std::size_t command_count() {
@@ -48,7 +36,8 @@ TEST(Smc100OneAxis, ManualRemountThroughContinue) {
   pnh.getParam("steps", steps);
   pnh.getParam("remount_wait_s", remount_wait_s);
   ASSERT_TRUE(pnh.getParam("log", log));
-  ros::Subscriber progress_sub = nh.subscribe("/gimbal_controller/progress", 100, on_progress);
+  ros::Subscriber progress_sub = nh.subscribe("/gimbal_controller/progress", 100,
+                                               &test_wait::LatestValues::on_message, &progress);
   ros::Subscriber command_sub = nh.subscribe("/gimbal/command", 1000, on_command);
   ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(90.0)));
   ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(90.0)));
@@ -68,29 +57,29 @@ TEST(Smc100OneAxis, ManualRemountThroughContinue) {
 
   std::vector<std::string> remounted;  // phases, in order
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
-  while (ros::WallTime::now() < deadline && progress_value("state") != "DONE") {
-    ASSERT_NE(progress_value("state"), "ABORTED") << progress_value("_message");
-    if (progress_value("state") == "REMOUNT") {
-      const std::string phase = progress_value("phase");
-      EXPECT_NE(progress_value("_message").find("remount the DUT"), std::string::npos)
-          << progress_value("_message");
-      EXPECT_NE(progress_value("_message").find("gimbal_controller/continue"), std::string::npos);
+  while (ros::WallTime::now() < deadline && progress("state") != "DONE") {
+    ASSERT_NE(progress("state"), "ABORTED") << progress.message();
+    if (progress("state") == "REMOUNT") {
+      const std::string phase = progress("phase");
+      EXPECT_NE(progress.message().find("remount the DUT"), std::string::npos)
+          << progress.message();
+      EXPECT_NE(progress.message().find("gimbal_controller/continue"), std::string::npos);
       // The stage waits for the operator: no further gimbal command, state unchanged.
       const std::size_t before = command_count();
       ros::WallDuration(remount_wait_s).sleep();
       EXPECT_EQ(command_count(), before) << "the controller went on during the remount";
-      EXPECT_EQ(progress_value("state"), "REMOUNT");
+      EXPECT_EQ(progress("state"), "REMOUNT");
       std_srvs::Trigger go;
       ASSERT_TRUE(ros::service::call("/gimbal_controller/continue", go));
       ASSERT_TRUE(go.response.success) << go.response.message;
       remounted.push_back(phase);
-      while (progress_value("state") == "REMOUNT" && ros::WallTime::now() < deadline) {
+      while (progress("state") == "REMOUNT" && ros::WallTime::now() < deadline) {
         ros::WallDuration(0.05).sleep();
       }
     }
     ros::WallDuration(0.05).sleep();
   }
-  ASSERT_EQ(progress_value("state"), "DONE") << progress_value("_message");
+  ASSERT_EQ(progress("state"), "DONE") << progress.message();
   EXPECT_EQ(remounted, (std::vector<std::string>{"y", "z"}));
 
   // The last command before each remount is the MOVING that closed the phase's last dwell.

@@ -10,6 +10,7 @@
 #include <ros/ros.h>
 #include <xmlrpcpp/XmlRpcClient.h>
 
+#include <cstdint>
 #include <map>
 #include <mutex>
 #include <set>
@@ -18,23 +19,36 @@
 namespace test_wait {
 
 // The latest value of each key of a DiagnosticStatus topic (calibration/status, the controller's
-// progress): filled in roscpp's callback thread, read by the test's conditions; "" for a key not
-// seen yet. Subscribe with nh.subscribe(topic, 10, &LatestValues::on_message, &values).
+// progress), its latest message text and how many messages came: filled in roscpp's callback
+// thread, read by the test's conditions; "" for a key not seen yet. Subscribe with
+// nh.subscribe(topic, 10, &LatestValues::on_message, &values).
 class LatestValues {
  public:
   void on_message(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     for (const auto& kv : msg->values) values_[kv.key] = kv.value;
+    message_ = msg->message;
+    ++messages_;
   }
   std::string operator()(const std::string& key) const {
     std::lock_guard<std::mutex> lock(mutex_);
     const auto it = values_.find(key);
     return it == values_.end() ? "" : it->second;
   }
+  std::string message() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return message_;
+  }
+  std::uint64_t messages() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return messages_;
+  }
 
  private:
   mutable std::mutex mutex_;
   std::map<std::string, std::string> values_;
+  std::string message_;
+  std::uint64_t messages_ = 0;
 };
 
 // Polls `done()` every period_s until it returns true, or fails after timeout_s of wall time.
@@ -52,25 +66,38 @@ template <class Condition>
   return ::testing::AssertionSuccess();
 }
 
+// A call of `node`'s own XML-RPC API (ROS slave API: getPid, getBusInfo, ...) with the caller
+// id as its only argument, as rosnode makes it; false when the node cannot be found or asked.
+// *response: [code, status message, value].
+inline bool call_node_api(const std::string& node, const std::string& method,
+                          XmlRpc::XmlRpcValue* response) {
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  args[1] = node;
+  if (!ros::master::execute("lookupNode", args, result, payload, false)) return false;
+  std::string host;
+  std::uint32_t port = 0;
+  if (!ros::network::splitURI(static_cast<std::string>(payload), host, port)) return false;
+  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
+  XmlRpc::XmlRpcValue request;
+  request[0] = ros::this_node::getName();
+  return client.execute(method.c_str(), request, *response) &&
+         response->getType() == XmlRpc::XmlRpcValue::TypeArray && response->size() >= 3 &&
+         static_cast<int>((*response)[0]) == 1;
+}
+
+// The pid of a node (getPid); -1 when it cannot be asked.
+inline int node_pid(const std::string& node) {
+  XmlRpc::XmlRpcValue response;
+  return call_node_api(node, "getPid", &response) ? static_cast<int>(response[2]) : -1;
+}
+
 // The topics on which `node` has a connected subscription (inbound connection), from its own
 // XML-RPC API (getBusInfo, as rosnode info shows them); empty when the node cannot be asked.
 inline std::set<std::string> connected_inbound_topics(const std::string& node) {
   std::set<std::string> topics;
-  XmlRpc::XmlRpcValue args, result, payload;
-  args[0] = ros::this_node::getName();
-  args[1] = node;
-  if (!ros::master::execute("lookupNode", args, result, payload, false)) return topics;
-  std::string host;
-  std::uint32_t port = 0;
-  if (!ros::network::splitURI(static_cast<std::string>(payload), host, port)) return topics;
-  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
-  XmlRpc::XmlRpcValue request, response;
-  request[0] = ros::this_node::getName();
-  if (!client.execute("getBusInfo", request, response) ||
-      response.getType() != XmlRpc::XmlRpcValue::TypeArray || response.size() < 3 ||
-      static_cast<int>(response[0]) != 1) {
-    return topics;
-  }
+  XmlRpc::XmlRpcValue response;
+  if (!call_node_api(node, "getBusInfo", &response)) return topics;
   // Each connection: [id, peer, direction "i"/"o", transport, topic, connected, ...].
   XmlRpc::XmlRpcValue& connections = response[2];
   for (int i = 0; i < connections.size(); ++i) {

@@ -42,6 +42,10 @@ struct CalibrateOptions {
   std::optional<BudgetSpec> budget;
 };
 
+// `options` with the fit and the analysis weighted by the run's noise model (DESIGN.md section
+// 12), as offline_fit and the calibration node both do; unchanged without one (white).
+CalibrateOptions with_noise_model(CalibrateOptions options, const std::optional<NoiseModel>& model);
+
 // The run's temperature (DESIGN.md section 10), when some dwell recorded one: S and O, and any
 // fitted temperature coefficient, refer to reference_c (T_ref, the mean dwell temperature).
 struct RunTemperature {

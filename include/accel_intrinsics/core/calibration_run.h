@@ -14,11 +14,12 @@
 //                                       Abort           ask the gimbal controller to abort
 //                                                       (only from tick())
 //
-// What it owns: the dwell assembler (samples -> dwells, DESIGN.md section 2), the position table
-// of accepted rows, the watchdogs (no samples during a dwell, too few samples, a dwell with
-// none), retries of a faulty position (rewind the controller; rows measured before its new
-// MOVING are discarded: "blackouts"), resume after a restart (from a checkpoint, or of the
-// gimbal controller), and the decision when to fit.
+// What it owns: the dwell assembler (samples -> dwells, DESIGN.md section 2), fed through the
+// commanded dwell source, the position table of accepted rows, the raw samples of the run's first
+// dwell (its long rest, for the noise model: DESIGN.md section 12), the watchdogs (no samples
+// during a dwell, too few samples, a dwell with none), retries of a faulty position (rewind the
+// controller; rows measured before its new MOVING are discarded: "blackouts"), resume after a
+// restart (from a checkpoint, or of the gimbal controller), and the decision when to fit.
 //
 // Time: every stamp and `now_s` is in seconds of the stand's clock (ROS time; simulated time
 // under /clock). Thread safety: none; the shell serializes calls.
@@ -28,12 +29,15 @@
 #include <cstdint>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <vector>
 
 #include "accel_intrinsics/core/clock_check.h"
 #include "accel_intrinsics/core/dwell_assembler.h"
+#include "accel_intrinsics/core/dwell_source.h"
+#include "accel_intrinsics/core/noise.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/raw_stream_analysis.h"
 
@@ -146,6 +150,9 @@ struct RunAction {
   std::vector<GimbalEvent> move_commands;
   std::vector<ImuSample> move_samples;
   AssemblerCounters counters;  // of the run at the fit (the result's "samples" block)
+  // FitNow: the noise model of the run's long rest, to weight the fit and the analysis with
+  // (core::with_noise_model); none: white.
+  std::optional<NoiseModel> noise_model;
   std::uint64_t fit_ticket = 0;
 };
 using RunActions = std::vector<RunAction>;
@@ -248,6 +255,13 @@ class CalibrationRun {
   CheckpointState checkpoint_state() const;
   // Gimbal events and the samples around the moves (record_moves), for the timing lag.
   const MoveSampleRecorder& recorded_moves() const { return moves_; }
+  // The noise model of the run's long rest (DESIGN.md section 12), by the rule offline_fit
+  // applies to a recorded run (core::noise_model_of_run: the first dwell of at least 10 times the
+  // median dwell), from the first dwell's raw samples kept as they came. None (white) when the
+  // run has no long rest, or its samples are not here (a run restored from a checkpoint), or they
+  // are too few for a model (`why` then says so).
+  std::optional<NoiseModel> noise_model(std::string* why = nullptr) const;
+  const LongRestRecorder& long_rest() const { return long_rest_; }
   // The direction of approach the next row at (phase, step) would have.
   int approach_of_next_row(Phase phase, std::uint32_t step) const;
 
@@ -290,7 +304,11 @@ class CalibrationRun {
 
   RunOptions options_;
   DwellAssembler assembler_;
+  // Gimbal commands bound the dwells (core/dwell_source.h); the run keeps the assembler for its
+  // own bookkeeping (flushes, restarts, counters).
+  CommandedDwellSource source_{&assembler_};
   MoveSampleRecorder moves_;
+  LongRestRecorder long_rest_;
   ClockCheck clock_check_;
   RunActions actions_;
   PositionTable table_;

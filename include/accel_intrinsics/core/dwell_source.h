@@ -72,6 +72,9 @@ class DetectedDwellSource : public DwellSource {
   CompletedRows add_channel_sample(const ChannelSample& reading) override;
   CompletedRows finish() override;
 
+  // The quiet level of the stream when it is known beforehand (the batch detect_rests measures
+  // it on the whole record first); else the detector learns it as it goes.
+  void set_quiet_std(const Eigen::Vector3d& quiet_std) { detector_.set_quiet_std(quiet_std); }
   const RestDetector& detector() const { return detector_; }
   std::uint64_t commands_ignored() const { return commands_ignored_; }
 

@@ -1,6 +1,6 @@
 // A live hand tumble (DESIGN.md section 11, the calibration node's mode: tumble): samples in,
-// rests found as they end (RestDetector), and after each rest the progress a person turning the
-// device needs: the rests so far, the coverage, the current relative uncertainties and the next
+// rests found as they end (the detected dwell source: RestDetector feeding the dwell assembler,
+// core/dwell_source.h), and after each rest the progress a person turning the device needs: the rests so far, the coverage, the current relative uncertainties and the next
 // pose to try; the fit when asked or when every relative uncertainty is below a target.
 // ROS-free; the node (ros/tumble_calibration_node.h) is a shell around it.
 #pragma once
@@ -8,11 +8,14 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "accel_intrinsics/core/calibrate.h"
+#include "accel_intrinsics/core/dwell_source.h"
+#include "accel_intrinsics/core/noise.h"
 #include "accel_intrinsics/core/position_table.h"
 #include "accel_intrinsics/core/rest_detection.h"
 #include "accel_intrinsics/core/tumble.h"
@@ -54,6 +57,8 @@ struct TumbleProgress {
 class TumbleSession {
  public:
   explicit TumbleSession(const TumbleSessionOptions& options);
+  TumbleSession(const TumbleSession&) = delete;  // its source points at its assembler
+  TumbleSession& operator=(const TumbleSession&) = delete;
 
   // One sample in time order; a sample whose stamp goes back is dropped and counted. Returns
   // true when a rest ended with it (the progress changed).
@@ -65,18 +70,26 @@ class TumbleSession {
   const TumbleProgress& progress() const { return progress_; }
   // The rests so far as a table (rows of unknown orientation).
   const PositionTable& table() const { return table_; }
-  const RestDetector& detector() const { return detector_; }
+  const RestDetector& detector() const { return source_->detector(); }
   std::uint64_t dropped_out_of_order() const { return dropped_; }
+  // The noise model of the first rest when it is the session's long rest (at least 30 s:
+  // core::find_long_rest, as offline_fit finds it in a recorded tumble), from its raw samples
+  // kept as they came; none (white) otherwise. A person starts with the long rest.
+  std::optional<NoiseModel> noise_model() const;
 
-  // The whole pipeline on the rests so far (core::calibrate); throws FitError as fit() does.
+  // The whole pipeline on the rests so far (core::calibrate), weighted with noise_model();
+  // throws FitError as fit() does.
   CalibrationReport report(const CalibrateOptions& options) const;
 
  private:
-  bool take_new_rests();
+  bool take_new_rests(const CompletedRows& rests);
   void update_progress();
+  void start();  // a fresh source, assembler and long-rest recorder
 
   TumbleSessionOptions options_;
-  RestDetector detector_;
+  DwellAssembler assembler_;
+  std::unique_ptr<DetectedDwellSource> source_;  // feeds assembler_
+  LongRestRecorder long_rest_;                   // fed by assembler_ in stamp order
   PositionTable table_;
   TumbleProgress progress_;
   std::uint64_t dropped_ = 0;

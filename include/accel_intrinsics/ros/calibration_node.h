@@ -135,6 +135,7 @@ class CalibrationNode {
     core::RawStreams moves;
     core::AssemblerCounters counters;
     ros::Time stamp;
+    std::optional<core::NoiseModel> noise_model;  // of the run's long rest; none: white
   };
   void fit_loop();
 
