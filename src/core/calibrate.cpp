@@ -16,7 +16,8 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
   report.certificate_refit_policy = options.certificate_refit;
   // Noise that is not white (DESIGN.md section 12): the rest's slow part fitted again to the
   // run's dwell means (discrepancy.h slow_part_from_run), for the fit as for the analysis.
-  // Gimbal and position tables only (the tumble fit inflates variances instead).
+  // Gimbal and position tables only (it projects out the gimbal model; a tumble's fit and analysis
+  // take the rest's model as it is, GLS across the rests).
   FitOptions fit_options = options.fit;
   if (!fit_options.noise_model.white() && rows_with_unknown_orientation(table) == 0)
     fit_options.noise_model = slow_part_from_run(table, fit_options);

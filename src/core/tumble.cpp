@@ -4,9 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
+#include <memory>
 #include <sstream>
 
 #include "accel_intrinsics/core/intrinsics.h"
+#include "accel_intrinsics/core/noise.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -156,28 +158,119 @@ Matrix9 checked_tumble_inverse(const Matrix9& N) {
   return 0.5 * (inv + inv.transpose());
 }
 
+bool has_usable_std(const PositionTable& table) {
+  for (const DwellRecord& r : table.rows)
+    if (r.n >= 2 && r.std.allFinite() && r.std.maxCoeff() > 0.0) return true;
+  return false;
+}
+
 struct Normal {
   Matrix9 N = Matrix9::Zero();
   Vector9 b = Vector9::Zero();
   double chi2 = 0.0;
 };
 
-Normal accumulate(const Parameters& p, const PositionTable& table,
-                  const std::vector<Eigen::Vector3d>& se, bool unit_weights, double g,
-                  const std::vector<double>* fixed_sigma = nullptr,
-                  std::vector<double>* sigma_out = nullptr) {
-  Normal out;
-  if (sigma_out) sigma_out->resize(table.rows.size());
-  for (std::size_t i = 0; i < table.rows.size(); ++i) {
-    const RestTerm t = rest_term(p, table.rows[i].mean, g);
-    const double sigma =
-        fixed_sigma ? (*fixed_sigma)[i] : (unit_weights ? 1.0 : rest_sigma(t, se[i]));
-    if (sigma_out) (*sigma_out)[i] = sigma;
-    const double w = 1.0 / (sigma * sigma);
-    out.N.noalias() += w * t.gradient * t.gradient.transpose();
-    out.b.noalias() += w * t.gradient * t.residual;
-    out.chi2 += w * t.residual * t.residual;
+// The rests to fit and how their means err. White noise: each mean on its own, standard errors
+// se. A noise model with a slow part (DESIGN.md section 12): the means of neighbouring rests err
+// together; R_s = L_s L_s^T from dwell_correlation (noise.h, the one definition of the slow
+// covariance between dwells) is their correlation per accelerometer in units of se, i.e.
+// Cov(m_i(s), m_j(s)) = se_i(s) se_j(s) R_s(i, j).
+struct TumbleProblem {
+  const PositionTable* table = nullptr;
+  std::vector<Eigen::Vector3d> se;
+  bool unit_weights = false;
+  double g = kStandardGravity;
+  bool gls = false;
+  Eigen::MatrixXd R[3];
+};
+
+TumbleProblem make_problem(const PositionTable& table, double g, const NoiseModel& noise_model) {
+  TumbleProblem problem;
+  problem.table = &table;
+  problem.se = dwell_standard_errors(table);
+  problem.unit_weights = !has_usable_std(table);
+  problem.g = g;
+  if (noise_model.white() || problem.unit_weights) return problem;
+  const std::shared_ptr<const DwellCorrelation> corr =
+      dwell_correlation(table, problem.se, noise_model);
+  if (!corr) return problem;
+  problem.gls = true;
+  for (int s = 0; s < 3; ++s) problem.R[s] = corr->L[s] * corr->L[s].transpose();
+  return problem;
+}
+
+// How the rests are weighted at an estimate. White: each by the sigma of its residual
+// (rest_sigma). GLS: jointly, by the lower Cholesky factor L of the residuals' covariance.
+// The residual r_i = |P (m_i - O)| - g depends on the mean m_i through c_i = P^T a_hat_i (first
+// order), so C(i, j) = sum_s c_i(s) c_j(s) Cov(m_i(s), m_j(s)), the white variances included.
+// The gradients c_i are taken at the current estimate and recomputed every Gauss-Newton
+// iteration, as the white sigmas are: they depend on P and each rest's direction, which the start
+// ellipsoid already gives far better than the weights need, so the iterations barely move them;
+// recomputing costs one rests x rests Cholesky per iteration and with no slow part gives exactly
+// the white weights. The step halving keeps the iteration's weights so that its costs compare.
+struct RestWeights {
+  std::vector<double> sigma;  // white
+  Eigen::MatrixXd L;          // GLS
+};
+
+RestWeights weights_at(const TumbleProblem& problem, const Parameters& p) {
+  const PositionTable& table = *problem.table;
+  const std::size_t n = table.rows.size();
+  RestWeights w;
+  if (!problem.gls) {
+    w.sigma.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const RestTerm t = rest_term(p, table.rows[i].mean, problem.g);
+      w.sigma[i] = problem.unit_weights ? 1.0 : rest_sigma(t, problem.se[i]);
+    }
+    return w;
   }
+  const Eigen::Index m = static_cast<Eigen::Index>(n);
+  Eigen::MatrixXd u(m, 3);  // c_i(s) se_i(s)
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const std::size_t row = static_cast<std::size_t>(i);
+    const RestTerm t = rest_term(p, table.rows[row].mean, problem.g);
+    u.row(i) = t.c.cwiseProduct(problem.se[row]).transpose();
+  }
+  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(m, m);
+  for (int s = 0; s < 3; ++s)
+    C.noalias() += u.col(s).asDiagonal() * problem.R[s] * u.col(s).asDiagonal();
+  const Eigen::LLT<Eigen::MatrixXd> llt(C);
+  if (llt.info() != Eigen::Success)
+    throw FitError("tumble: the covariance of the rests' residuals under the noise model is not "
+                   "positive definite");
+  w.L = llt.matrixL();
+  return w;
+}
+
+// Normal equations of the residuals, weighted each on its own (white) or whitened by L^-1 (GLS).
+Normal accumulate(const TumbleProblem& problem, const Parameters& p, const RestWeights& weights) {
+  const PositionTable& table = *problem.table;
+  Normal out;
+  if (!problem.gls) {
+    for (std::size_t i = 0; i < table.rows.size(); ++i) {
+      const RestTerm t = rest_term(p, table.rows[i].mean, problem.g);
+      const double sigma = weights.sigma[i];
+      const double w = 1.0 / (sigma * sigma);
+      out.N.noalias() += w * t.gradient * t.gradient.transpose();
+      out.b.noalias() += w * t.gradient * t.residual;
+      out.chi2 += w * t.residual * t.residual;
+    }
+    return out;
+  }
+  const Eigen::Index m = static_cast<Eigen::Index>(table.rows.size());
+  Eigen::VectorXd r(m);
+  Eigen::Matrix<double, Eigen::Dynamic, kParams> J(m, kParams);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const RestTerm t = rest_term(p, table.rows[static_cast<std::size_t>(i)].mean, problem.g);
+    r(i) = t.residual;
+    J.row(i) = t.gradient.transpose();
+  }
+  weights.L.triangularView<Eigen::Lower>().solveInPlace(r);
+  weights.L.triangularView<Eigen::Lower>().solveInPlace(J);
+  out.N.noalias() = J.transpose() * J;
+  out.b.noalias() = J.transpose() * r;
+  out.chi2 = r.squaredNorm();
   return out;
 }
 
@@ -193,6 +286,7 @@ Parameters canonical(Parameters p) {
 struct TumbleSolution {
   Parameters p;
   Matrix9 information = Matrix9::Zero();
+  double chi2 = 0.0;  // at p, with the weights at p
   double scale = 1.0;
 };
 
@@ -213,21 +307,13 @@ Vector9 intrinsic_scales(const Eigen::Matrix3d& S, double g) {
   return s;
 }
 
-bool has_usable_std(const PositionTable& table) {
-  for (const DwellRecord& r : table.rows)
-    if (r.n >= 2 && r.std.allFinite() && r.std.maxCoeff() > 0.0) return true;
-  return false;
-}
-
-TumbleSolution solve(const PositionTable& table, const TumbleFitOptions& options) {
-  const double g = options.local_gravity;
-  const std::vector<Eigen::Vector3d> se = dwell_standard_errors(table);
-  const bool unit_weights = !has_usable_std(table);
-  Parameters p = ellipsoid_start(table, g);
+TumbleSolution solve(const TumbleProblem& problem) {
+  const PositionTable& table = *problem.table;
+  Parameters p = ellipsoid_start(table, problem.g);
   // Gauss-Newton with step halving; the weights follow the current estimate (they depend on P).
   for (int iteration = 0; iteration < 100; ++iteration) {
-    std::vector<double> sigma;
-    const Normal n = accumulate(p, table, se, unit_weights, g, nullptr, &sigma);
+    const RestWeights weights = weights_at(problem, p);
+    const Normal n = accumulate(problem, p, weights);
     const Eigen::LDLT<Matrix9> ldlt(n.N);
     const Vector9 step = -ldlt.solve(n.b);
     if (!step.allFinite()) break;
@@ -236,7 +322,7 @@ TumbleSolution solve(const PositionTable& table, const TumbleFitOptions& options
     bool improved = false;
     for (int halving = 0; halving < 30; ++halving) {
       next = Parameters::from(p.vector() + t * step);
-      const double cost = accumulate(next, table, se, unit_weights, g, &sigma).chi2;
+      const double cost = accumulate(problem, next, weights).chi2;
       if (std::isfinite(cost) && cost <= n.chi2 * (1.0 + 1e-12)) {
         improved = true;
         break;
@@ -255,11 +341,12 @@ TumbleSolution solve(const PositionTable& table, const TumbleFitOptions& options
   p = canonical(p);
   TumbleSolution out;
   out.p = p;
-  const Normal n = accumulate(p, table, se, unit_weights, g);
+  const Normal n = accumulate(problem, p, weights_at(problem, p));
   out.information = n.N;
+  out.chi2 = n.chi2;
   const int dof = static_cast<int>(table.rows.size()) - kParams;
   const double reduced = dof > 0 ? n.chi2 / dof : 0.0;
-  out.scale = unit_weights ? reduced : std::max(1.0, reduced);
+  out.scale = problem.unit_weights ? reduced : std::max(1.0, reduced);
   return out;
 }
 
@@ -280,7 +367,8 @@ FitResult fit_tumble(const PositionTable& table, const TumbleFitOptions& options
                      "only (phase '-' without f_x,f_y,f_z)");
   }
   const double g = options.local_gravity;
-  const TumbleSolution sol = solve(table, options);
+  const TumbleProblem problem = make_problem(table, g, options.noise_model);
+  const TumbleSolution sol = solve(problem);
   const Matrix9 cov = checked_tumble_inverse(sol.information) * sol.scale;
 
   FitResult r;
@@ -288,15 +376,17 @@ FitResult fit_tumble(const PositionTable& table, const TumbleFitOptions& options
   r.local_gravity = g;
   r.S = sol.p.S;
   r.O = sol.p.O;
-  r.standard_errors = dwell_standard_errors(table);
-  const bool unit_weights = !has_usable_std(table);
+  r.standard_errors = problem.se;
+  if (problem.gls) r.noise_model = options.noise_model;
   r.residuals.resize(n);
   double sum_sq = 0.0;
-  r.chi2 = 0.0;
+  r.chi2 = problem.gls ? sol.chi2 : 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     const RestTerm t = rest_term(sol.p, table.rows[i].mean, g);
-    const double sigma = unit_weights ? 1.0 : rest_sigma(t, r.standard_errors[i]);
-    r.chi2 += (t.residual / sigma) * (t.residual / sigma);
+    if (!problem.gls) {
+      const double sigma = problem.unit_weights ? 1.0 : rest_sigma(t, r.standard_errors[i]);
+      r.chi2 += (t.residual / sigma) * (t.residual / sigma);
+    }
     // Mean minus its projection on the fitted ellipsoid: S (a - g a_hat) = S a_hat (|a| - g).
     r.residuals[i] = r.S * (t.a.normalized() * t.residual);
     sum_sq += r.residuals[i].squaredNorm();
@@ -374,9 +464,10 @@ PoseSuggestion suggest_next_pose(const FitResult& fit, const PositionTable& tabl
   Parameters p;
   p.S = fit.S;
   p.O = fit.O;
-  const std::vector<Eigen::Vector3d> se = dwell_standard_errors(table);
-  const bool unit_weights = !has_usable_std(table);
-  const Normal n = accumulate(p, table, se, unit_weights, g);
+  const TumbleProblem problem = make_problem(table, g, NoiseModel());
+  const std::vector<Eigen::Vector3d>& se = problem.se;
+  const bool unit_weights = problem.unit_weights;
+  const Normal n = accumulate(problem, p, weights_at(problem, p));
   const Matrix9 C = checked_tumble_inverse(n.N);  // unscaled
   const double scale = fit.reduced_chi2 > 1.0 || unit_weights ? fit.reduced_chi2 : 1.0;
   // The typical noise of one more rest: the median standard error per axis.

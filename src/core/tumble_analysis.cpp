@@ -50,6 +50,61 @@ class RestMeanResidual {
   double g_;
 };
 
+// All rests at once, whitened across rests (generalized least squares under a slow bias, DESIGN.md
+// section 12): every rest's normalized residuals (RestMeanResidual, interleaved 3 i + s), then per
+// accelerometer s the vector (z_0s, z_1s, ...) times L_s^-1 by forward substitution, L_s the
+// Cholesky factor of the rest means' correlation (noise.h DwellCorrelation). One residual block,
+// since the whitening couples every rest. Parameter blocks: S lower (6), O (3), the n directions
+// (3 each), then one per effect.
+class WhitenedRestMeans {
+ public:
+  static constexpr int kStride = RestMeanResidual::kStride;
+
+  WhitenedRestMeans(std::vector<RestMeanResidual> rests,
+                    std::shared_ptr<const DwellCorrelation> corr, std::size_t effects)
+      : rests_(std::move(rests)), corr_(std::move(corr)), effects_(effects) {}
+
+  template <typename T>
+  bool operator()(T const* const* p, T* residuals) const {
+    const std::size_t n = rests_.size();
+    std::vector<T const*> blocks(3 + effects_);
+    blocks[0] = p[0];
+    blocks[1] = p[1];
+    for (std::size_t j = 0; j < effects_; ++j) blocks[3 + j] = p[2 + n + j];
+    for (std::size_t i = 0; i < n; ++i) {
+      blocks[2] = p[2 + i];
+      if (!rests_[i](blocks.data(), residuals + 3 * i)) return false;
+    }
+    for (int s = 0; s < 3; ++s) {
+      const Eigen::MatrixXd& L = corr_->L[s];
+      for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(n); ++i) {
+        T x = residuals[3 * i + s];
+        for (Eigen::Index j = 0; j < i; ++j) x -= L(i, j) * residuals[3 * j + s];
+        residuals[3 * i + s] = x / L(i, i);
+      }
+    }
+    return true;
+  }
+
+ private:
+  std::vector<RestMeanResidual> rests_;
+  std::shared_ptr<const DwellCorrelation> corr_;
+  std::size_t effects_;
+};
+
+// The normalized residuals back from whitened ones: z_s = L_s w_s per accelerometer.
+std::vector<double> unwhitened(const DwellCorrelation& corr, const std::vector<double>& w) {
+  const Eigen::Index n = static_cast<Eigen::Index>(corr.rows);
+  std::vector<double> z(w.size());
+  for (int s = 0; s < 3; ++s) {
+    Eigen::VectorXd part(n);
+    for (Eigen::Index i = 0; i < n; ++i) part(i) = w[static_cast<std::size_t>(3 * i + s)];
+    const Eigen::VectorXd colored = corr.L[s].triangularView<Eigen::Lower>() * part;
+    for (Eigen::Index i = 0; i < n; ++i) z[static_cast<std::size_t>(3 * i + s)] = colored(i);
+  }
+  return z;
+}
+
 bool has_usable_std(const PositionTable& table) {
   for (const DwellRecord& r : table.rows)
     if (r.n >= 2 && r.std.allFinite() && r.std.maxCoeff() > 0.0) return true;
@@ -66,17 +121,61 @@ double p_value(double statistic, double reduced_chi2, int dof) {
   return boost::math::cdf(boost::math::complement(chi2, statistic));
 }
 
+// The residual blocks of fit_tumble_with_effects: one per rest (white), or one for all rests,
+// whitened across them (GLS, `corr` set). Directions on the sphere.
+void add_rests(ceres::Problem& problem, const std::vector<RestMeanResidual>& rests,
+               const std::shared_ptr<const DwellCorrelation>& corr, double* lower,
+               double* offsets, std::vector<std::array<double, 3>>& directions,
+               std::vector<double>& values) {
+  const std::size_t n = rests.size();
+  const std::size_t k = values.size();
+  if (!corr) {
+    for (std::size_t i = 0; i < n; ++i) {
+      auto* cost =
+          new ceres::DynamicAutoDiffCostFunction<RestMeanResidual, RestMeanResidual::kStride>(
+              new RestMeanResidual(rests[i]));
+      cost->AddParameterBlock(6);
+      cost->AddParameterBlock(3);
+      cost->AddParameterBlock(3);
+      for (std::size_t j = 0; j < k; ++j) cost->AddParameterBlock(1);
+      cost->SetNumResiduals(3);
+      std::vector<double*> blocks{lower, offsets, directions[i].data()};
+      for (std::size_t j = 0; j < k; ++j) blocks.push_back(&values[j]);
+      problem.AddResidualBlock(cost, nullptr, blocks);
+      problem.SetManifold(directions[i].data(), new ceres::SphereManifold<3>());
+    }
+    return;
+  }
+  auto* cost = new ceres::DynamicAutoDiffCostFunction<WhitenedRestMeans, WhitenedRestMeans::kStride>(
+      new WhitenedRestMeans(rests, corr, k));
+  cost->AddParameterBlock(6);
+  cost->AddParameterBlock(3);
+  for (std::size_t i = 0; i < n; ++i) cost->AddParameterBlock(3);
+  for (std::size_t j = 0; j < k; ++j) cost->AddParameterBlock(1);
+  cost->SetNumResiduals(3 * static_cast<int>(n));
+  std::vector<double*> blocks{lower, offsets};
+  for (std::size_t i = 0; i < n; ++i) blocks.push_back(directions[i].data());
+  for (std::size_t j = 0; j < k; ++j) blocks.push_back(&values[j]);
+  problem.AddResidualBlock(cost, nullptr, blocks);
+  for (std::size_t i = 0; i < n; ++i)
+    problem.SetManifold(directions[i].data(), new ceres::SphereManifold<3>());
+}
+
 }  // namespace
 
 FitResult fit_tumble_with_effects(const PositionTable& table, const std::vector<Effect>& effects,
-                                  double g) {
+                                  double g, const NoiseModel& noise_model) {
   TumbleFitOptions base_options;
   base_options.local_gravity = g;
+  base_options.noise_model = noise_model;
   const FitResult start = fit_tumble(table, base_options);
   const std::size_t n = table.rows.size();
   const std::size_t k = effects.size();
   const std::vector<Eigen::Vector3d> se = dwell_standard_errors(table);
   const bool unit_weights = !has_usable_std(table);
+  // Null when white (or without a usable std, as the tumble fit).
+  const std::shared_ptr<const DwellCorrelation> corr =
+      unit_weights ? nullptr : dwell_correlation(table, se, noise_model);
   const double t0 = effective_time_origin(table);
   const double t_ref = reference_temperature_c(table);
 
@@ -90,24 +189,18 @@ FitResult fit_tumble_with_effects(const PositionTable& table, const std::vector<
   for (std::size_t j = 0; j < k; ++j) values[j] = effects[j].value;
 
   auto terms = std::make_shared<const std::vector<Effect>>(effects);
-  ceres::Problem problem;
+  std::vector<RestMeanResidual> rests;
+  rests.reserve(n);
   for (std::size_t i = 0; i < n; ++i) {
     const DwellGeometry geom = dwell_inputs(table.rows[i], t0, +1, t_ref);
     const Eigen::Vector3d weight = unit_weights ? Eigen::Vector3d::Ones() : se[i];
-    auto* cost = new ceres::DynamicAutoDiffCostFunction<RestMeanResidual, RestMeanResidual::kStride>(
-        new RestMeanResidual(terms, geom, table.rows[i].mean, weight, g));
-    cost->AddParameterBlock(6);
-    cost->AddParameterBlock(3);
-    cost->AddParameterBlock(3);
-    for (std::size_t j = 0; j < k; ++j) cost->AddParameterBlock(1);
-    cost->SetNumResiduals(3);
-    std::vector<double*> blocks{lower.data(), offsets.data(), directions[i].data()};
-    for (std::size_t j = 0; j < k; ++j) blocks.push_back(&values[j]);
-    problem.AddResidualBlock(cost, nullptr, blocks);
-    problem.SetManifold(directions[i].data(), new ceres::SphereManifold<3>());
+    rests.emplace_back(terms, geom, table.rows[i].mean, weight, g);
   }
+  ceres::Problem problem;
+  add_rests(problem, rests, corr, lower.data(), offsets.data(), directions, values);
   ceres::Solver::Options solver;
-  solver.linear_solver_type = ceres::DENSE_SCHUR;
+  // One residual block under GLS: nothing for the Schur complement to eliminate.
+  solver.linear_solver_type = corr ? ceres::DENSE_QR : ceres::DENSE_SCHUR;
   solver.max_num_iterations = 200;
   solver.function_tolerance = 1e-14;
   solver.gradient_tolerance = 1e-14;
@@ -165,6 +258,11 @@ FitResult fit_tumble_with_effects(const PositionTable& table, const std::vector<
     r.effects_std[j] = std::sqrt(std::max(0.0, inverse(9 + j, 9 + j) * scale));
   }
   r.standard_errors = se;
+  if (corr) {
+    r.noise_model = noise_model;
+    r.correlation = corr;  // chi2 is the whitened one
+    residuals = unwhitened(*corr, residuals);
+  }
   r.residuals.resize(n);
   double sum_sq = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
@@ -182,11 +280,11 @@ FitResult fit_tumble_with_effects(const PositionTable& table, const std::vector<
   return r;
 }
 
-TumbleAnalysis analyze_tumble(const PositionTable& measured, const TumbleAnalysisOptions& options) {
+TumbleAnalysis analyze_tumble(const PositionTable& table, const TumbleAnalysisOptions& options) {
   TumbleAnalysis out;
-  // Noise that is not white: every fit weights each rest by its variance with the slow part, as
-  // the tumble fit does (fit.h), so the tests judge the gap against the noise the rests have.
-  const PositionTable table = with_slow_variance(measured, options.noise_model);
+  // Noise that is not white: every fit is GLS across the rests, as the tumble fit (tumble.h), so
+  // the tests judge the gap against the noise the rests have, correlations included.
+  const NoiseModel& noise = options.noise_model;
   std::vector<Effect> candidates;
   for (const char* name : {"quadratic_nonlinearity", "cubic_nonlinearity", "offset_drift"})
     for (const char* target : {"u", "v", "w"}) candidates.push_back(make_effect(name, target));
@@ -205,7 +303,7 @@ TumbleAnalysis analyze_tumble(const PositionTable& measured, const TumbleAnalysi
   out.not_screened.push_back("timing_lag: needs commanded moves (a gimbal run's raw streams)");
 
   std::vector<Effect> named;
-  out.before = fit_tumble_with_effects(table, named, options.local_gravity);
+  out.before = fit_tumble_with_effects(table, named, options.local_gravity, noise);
   out.after = out.before;
   for (int step = 0; step < options.max_effects; ++step) {
     std::vector<TumbleEffectTest> tests;
@@ -218,7 +316,7 @@ TumbleAnalysis analyze_tumble(const PositionTable& measured, const TumbleAnalysi
       TumbleEffectTest t;
       t.effect = candidate;
       try {
-        const FitResult refit = fit_tumble_with_effects(table, trial, options.local_gravity);
+        const FitResult refit = fit_tumble_with_effects(table, trial, options.local_gravity, noise);
         t.effect.value = refit.effects.back().value;
         t.std = refit.effects_std.back();
         t.delta_chi2 = std::max(0.0, out.after.chi2 - refit.chi2);
@@ -246,7 +344,7 @@ TumbleAnalysis analyze_tumble(const PositionTable& measured, const TumbleAnalysi
     }
     named.push_back(tests.front().effect);
     out.named.push_back(tests.front());
-    out.after = fit_tumble_with_effects(table, named, options.local_gravity);
+    out.after = fit_tumble_with_effects(table, named, options.local_gravity, noise);
   }
   if (out.stop_reason.empty()) out.stop_reason = "max_effects reached";
   out.noise_model = options.noise_model;

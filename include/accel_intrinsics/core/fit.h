@@ -38,9 +38,9 @@ struct FitOptions {
   int min_positions_per_phase = 3;
   // The noise of the dwell means (DESIGN.md section 12). White (default): weights 1 / se^2 with
   // se = std / sqrt(n), as always. With a slow part (estimated from the run's long rest,
-  // noise.h), the joint fit is generalized least squares with the covariance the model implies
-  // between the dwell means (fit.cpp says why); eq4 inflates each dwell's variance by its slow
-  // part instead.
+  // noise.h), the joint fit (a tumble's too) is generalized least squares with the covariance
+  // the model implies between the dwell means (fit.cpp says why); eq4 inflates each dwell's
+  // variance by its slow part instead.
   NoiseModel noise_model;
 };
 

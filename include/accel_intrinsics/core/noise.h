@@ -197,9 +197,9 @@ class LongRestRecorder {
 };
 
 // The table with each dwell's variance inflated by the slow part of its mean (the random walk from
-// the dwell's start): row std rescaled so that std / sqrt(n) is sqrt(std^2 / n + slow). For fits
-// that weight each dwell on its own (the tumble fit and its analysis; fit.h says why not GLS
-// there). A white model leaves the table as it is.
+// the dwell's start): row std rescaled so that std / sqrt(n) is sqrt(std^2 / n + slow). No fit
+// uses it now (the tumble fit and its analysis are GLS across rests, tumble.h; eq4 inflates its
+// own standard errors, fit.cpp). A white model leaves the table as it is.
 PositionTable with_slow_variance(const PositionTable& table, const NoiseModel& model);
 
 // The dwell means' covariance a noise model implies, per accelerometer s: C_s = D_s R_s D_s with

@@ -11,6 +11,12 @@
 // (se the standard error of the rest mean, a_hat the unit specific force: first-order
 // propagation of the mean's noise into |a|). Covariance (J^T W J)^-1, scaled by the reduced
 // chi-square when above 1, as every fit here (fit.h).
+// With a noise model that has a slow part (DESIGN.md section 12) the rests' means err together,
+// and the fit is generalized least squares across rests: r^T C^-1 r with
+//   C_ij = sum_s c_is c_js Cov(m_is, m_js),  c_i = P^T a_hat_i
+// (the same first-order propagation, Cov the white variances plus the slow covariance between
+// the rests, noise.h dwell_correlation); the residuals and the Jacobian are whitened by the
+// Cholesky factor of C, and chi2 is the whitened one.
 #pragma once
 
 #include <Eigen/Core>
@@ -31,6 +37,10 @@ extern const char* const kTumbleFrame;
 struct TumbleFitOptions {
   double local_gravity = kStandardGravity;
   std::size_t min_rests = 10;  // fewer: FitError naming how many more are needed
+  // White (the default): each rest weighted by its std / sqrt(n). With a slow part: GLS across
+  // the rests (above), and the result states the model (FitResult::noise_model). Data without a
+  // usable std (unit weights) ignore it, as the gimbal fit does.
+  NoiseModel noise_model;
 };
 
 // Fits the rows of `table` (all orientation_unknown). The FitResult has model Tumble, S

@@ -13,8 +13,10 @@
 // when the reduced chi-square is not above 1), Holm-adjusted over the candidates of the step. The
 // best candidate below alpha is named, and the screening repeats (greedy forward selection, up to
 // max_effects). With a noise model that has a slow part (the first long rest's, noise.h), every
-// fit weights each rest by its variance including the slow part of its mean (with_slow_variance,
-// as the tumble fit does), so a slow bias is not read as an effect. Not screened, and said so:
+// fit is generalized least squares across the rests: the residuals are whitened per
+// accelerometer by the Cholesky factor of the rest means' correlation (noise.h
+// dwell_correlation), so that rests erring together under a slow bias are not read as an
+// effect. Not screened, and said so:
 // the gimbal effects (angle offset and scale, axis tilt, backlash: there are no angles), timing
 // lag (no commanded moves).
 #pragma once
@@ -36,8 +38,8 @@ struct TumbleAnalysisOptions {
   double alpha = 0.025;  // family-wise per step (Holm), as the gimbal analysis
   int max_effects = 3;
   double min_temperature_span_k = 0.5;
-  // The noise of the rest means: white (std / sqrt(n)) by default; with a slow part, added to
-  // each rest's variance (noise.h with_slow_variance).
+  // The noise of the rest means: white (std / sqrt(n)) by default; with a slow part, GLS across
+  // the rests (above).
   NoiseModel noise_model;
 };
 
@@ -60,9 +62,12 @@ struct TumbleAnalysis {
   NoiseModel noise_model;  // what every fit used
 };
 
-// The fit of the model above with `effects` (their values the start). Throws FitError.
+// The fit of the model above with `effects` (their values the start), GLS when the noise model
+// has a slow part (the result then holds it and the correlation; chi2 is the whitened one).
+// Throws FitError.
 FitResult fit_tumble_with_effects(const PositionTable& table, const std::vector<Effect>& effects,
-                                  double local_gravity);
+                                  double local_gravity,
+                                  const NoiseModel& noise_model = NoiseModel());
 
 // Throws FitError when even the base fit fails (too few rests, ...).
 TumbleAnalysis analyze_tumble(const PositionTable& table, const TumbleAnalysisOptions& options = {});
