@@ -584,20 +584,6 @@ std::optional<NoiseModel> LongRestRecorder::noise_model(const PositionTable& tab
   return noise_model_of_run(table, stamps_, outputs_, initial_rest_s);
 }
 
-PositionTable with_slow_variance(const PositionTable& table, const NoiseModel& model) {
-  PositionTable out = table;
-  if (model.white()) return out;
-  for (DwellRecord& row : out.rows) {
-    const double n = static_cast<double>(std::max<std::uint64_t>(row.n, 1));
-    for (int s = 0; s < 3; ++s) {
-      const double slow = model.slow_covariance(s, row.t_start_s, row.t_end_s, row.t_start_s,
-                                                row.t_end_s, row.t_start_s);
-      row.std(s) = std::sqrt(n * (row.std(s) * row.std(s) / n + slow));
-    }
-  }
-  return out;
-}
-
 void DwellCorrelation::whiten(Eigen::VectorXd& v) const {
   const Eigen::Index n = static_cast<Eigen::Index>(rows);
   Eigen::VectorXd part(n);

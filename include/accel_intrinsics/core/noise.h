@@ -196,12 +196,6 @@ class LongRestRecorder {
   std::size_t dropped_ = 0;
 };
 
-// The table with each dwell's variance inflated by the slow part of its mean (the random walk from
-// the dwell's start): row std rescaled so that std / sqrt(n) is sqrt(std^2 / n + slow). No fit
-// uses it now (the tumble fit and its analysis are GLS across rests, tumble.h; eq4 inflates its
-// own standard errors, fit.cpp). A white model leaves the table as it is.
-PositionTable with_slow_variance(const PositionTable& table, const NoiseModel& model);
-
 // The dwell means' covariance a noise model implies, per accelerometer s: C_s = D_s R_s D_s with
 // D_s = diag(se_s) (the white standard errors the fit uses) and R_s = I + D_s^-1 K_s D_s^-1 (K_s:
 // slow_covariance between the rows). Stores the lower Cholesky factor of each R_s; whiten()
