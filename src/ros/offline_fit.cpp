@@ -118,7 +118,7 @@ void rests_from_stream(std::vector<core::ImuSample> samples, const OfflineFitArg
   input->context.rest_detection = found;
   input->context.rest_min_s = args.rest_min_s;
   // The noise model of the first rest of at least 30 s, when there is one (DESIGN.md section 12):
-  // the tumble fit then adds its slow part to each rest's variance.
+  // the tumble fit and its analysis are then generalized least squares across the rests.
   if (core::find_long_rest(input->table)) {
     std::vector<double> stamps;
     std::vector<Eigen::Vector3d> outputs;
