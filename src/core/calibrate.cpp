@@ -15,12 +15,19 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
   CalibrationReport report;
   report.certificate_refit_policy = options.certificate_refit;
   // Noise that is not white (DESIGN.md section 12): the rest's slow part fitted again to the
-  // run's dwell means (discrepancy.h slow_part_from_run), for the fit as for the analysis.
-  // Gimbal and position tables only (it projects out the gimbal model; a tumble's fit and analysis
-  // take the rest's model as it is, GLS across the rests).
+  // run's dwell means, for the fit as for the analysis: a gimbal or position table through its
+  // model (discrepancy.h slow_part_from_run), a tumble through the ellipsoid (tumble.h
+  // slow_part_from_tumble).
   FitOptions fit_options = options.fit;
-  if (!fit_options.noise_model.white() && rows_with_unknown_orientation(table) == 0)
-    fit_options.noise_model = slow_part_from_run(table, fit_options);
+  if (!fit_options.noise_model.white()) {
+    const std::size_t unknown = rows_with_unknown_orientation(table);
+    if (unknown == 0) {
+      fit_options.noise_model = slow_part_from_run(table, fit_options);
+    } else if (unknown == table.rows.size()) {
+      fit_options.noise_model =
+          slow_part_from_tumble(table, fit_options.noise_model, fit_options.local_gravity);
+    }
+  }
   report.base_fit = fit(table, fit_options);
   report.certificate = report.base_fit;
   report.noise = dwell_noise(table);

@@ -16,6 +16,7 @@
 #include <stdexcept>
 
 #include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/slow_part_fit.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -631,66 +632,6 @@ CrossValidatedGap cross_validated_gap(const PositionTable& table, const FitOptio
   return out;
 }
 
-namespace {
-
-// Restricted (residual) log-likelihood of w ~ N(0, I + a diag(lambda)), w in the eigenbasis of
-// the projected kernel (w2 = squared components), up to a constant.
-double restricted_log_likelihood(double a, const Eigen::VectorXd& lambda,
-                                 const Eigen::VectorXd& w2) {
-  double l = 0.0;
-  for (Eigen::Index i = 0; i < lambda.size(); ++i) {
-    const double v = 1.0 + a * lambda(i);
-    l -= 0.5 * (std::log(v) + w2(i) / v);
-  }
-  return l;
-}
-
-struct AmplitudeFit {
-  double amplitude = 0.0;
-  double log_likelihood = -std::numeric_limits<double>::infinity();
-};
-
-// The amplitude a >= 0 that maximizes the restricted likelihood: a = 0, a logarithmic grid over
-// twelve decades around 1 / mean(lambda), then a golden-section refinement around the best
-// point of the grid.
-AmplitudeFit best_amplitude(const Eigen::VectorXd& lambda, const Eigen::VectorXd& w2) {
-  AmplitudeFit best;
-  best.log_likelihood = restricted_log_likelihood(0.0, lambda, w2);
-  const double mean = lambda.size() > 0 ? lambda.mean() : 0.0;
-  if (!(mean > 0.0)) return best;
-  const int points = 97;  // 8 per decade
-  double best_log = std::numeric_limits<double>::quiet_NaN();
-  for (int k = 0; k < points; ++k) {
-    const double log_a = std::log(1.0 / mean) + std::log(10.0) * (-6.0 + 12.0 * k / (points - 1));
-    const double l = restricted_log_likelihood(std::exp(log_a), lambda, w2);
-    if (l > best.log_likelihood) {
-      best.log_likelihood = l;
-      best.amplitude = std::exp(log_a);
-      best_log = log_a;
-    }
-  }
-  if (!std::isfinite(best_log)) return best;
-  double lo = best_log - std::log(10.0) / 8.0, hi = best_log + std::log(10.0) / 8.0;
-  const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
-  for (int iteration = 0; iteration < 40; ++iteration) {
-    const double a = hi - phi * (hi - lo), b = lo + phi * (hi - lo);
-    if (restricted_log_likelihood(std::exp(a), lambda, w2) >
-        restricted_log_likelihood(std::exp(b), lambda, w2)) {
-      hi = b;
-    } else {
-      lo = a;
-    }
-  }
-  const double l = restricted_log_likelihood(std::exp(0.5 * (lo + hi)), lambda, w2);
-  if (l > best.log_likelihood) {
-    best.log_likelihood = l;
-    best.amplitude = std::exp(0.5 * (lo + hi));
-  }
-  return best;
-}
-
-}  // namespace
-
 NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& options) {
   NoiseModel model = options.noise_model;
   const std::size_t rows = table.rows.size();
@@ -719,13 +660,6 @@ NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& opti
     t_last = std::max(t_last, r.t_end_s);
   }
   const double span = std::max(t_last - t_first, 1.0);
-  // Shapes tried per axis: Gauss-Markov of unit variance at correlation times from 0.5 s to 5
-  // times the run (5 per decade), a random walk of unit density, and the rest's own mix of both
-  // (its slow part as estimated, amplitude free).
-  std::vector<AxisNoiseModel> shapes;
-  for (double tau = 0.5; tau <= 5.0 * span; tau *= std::pow(10.0, 0.2))
-    shapes.push_back(AxisNoiseModel{0.0, 1.0, tau, 0.0});
-  shapes.push_back(AxisNoiseModel{0.0, 0.0, 0.0, 1.0});
   std::ostringstream note;
   note << std::setprecision(3)
        << "; slow part fitted to the run's dwell means (restricted maximum likelihood, the shape "
@@ -738,20 +672,13 @@ NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& opti
       z(i) = base.residuals[static_cast<std::size_t>(i)](s) / se[static_cast<std::size_t>(i)](s);
       X.row(i) = J.row(3 * i + s);
     }
-    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(X);
-    const Eigen::Index rank = qr.rank();
-    if (n - rank < 4) continue;
-    const Eigen::MatrixXd full_q = qr.householderQ() * Eigen::MatrixXd::Identity(n, n);
-    const Eigen::MatrixXd U = full_q.rightCols(n - rank);  // orthogonal complement
+    const Eigen::MatrixXd U = residual_complement(X);
+    if (U.cols() < 4) continue;
     const Eigen::VectorXd w = U.transpose() * z;
-    std::vector<AxisNoiseModel> axis_shapes = shapes;
-    AxisNoiseModel rest_shape = model.axes[s];
-    rest_shape.white_std = 0.0;
-    if (rest_shape.slow()) axis_shapes.push_back(rest_shape);
-    AmplitudeFit best;
+    SlowAmplitude best;
     best.log_likelihood = -std::numeric_limits<double>::infinity();
     AxisNoiseModel chosen;
-    for (const AxisNoiseModel& shape : axis_shapes) {
+    for (const AxisNoiseModel& shape : slow_part_shapes(span, model.axes[s])) {
       NoiseModel unit;
       unit.axes[s] = shape;
       Eigen::MatrixXd K(n, n);
@@ -764,22 +691,17 @@ NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& opti
               (se[static_cast<std::size_t>(i)](s) * se[static_cast<std::size_t>(j)](s));
         }
       }
-      const Eigen::MatrixXd M = U.transpose() * K * U;
-      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(M);
-      if (eig.info() != Eigen::Success) continue;
-      const Eigen::VectorXd lambda = eig.eigenvalues().cwiseMax(0.0);
-      const Eigen::VectorXd w2 = (eig.eigenvectors().transpose() * w).cwiseAbs2();
-      const AmplitudeFit f = best_amplitude(lambda, w2);
+      const SlowAmplitude f = best_slow_amplitude(w, U.transpose() * K * U);
       if (f.log_likelihood > best.log_likelihood) {
         best = f;
         chosen = shape;
       }
     }
     AxisNoiseModel& axis = model.axes[s];
-    const double c = std::sqrt(best.amplitude);
-    axis.gm_sigma = best.amplitude > 0.0 ? chosen.gm_sigma * c : 0.0;
-    axis.gm_tau_s = axis.gm_sigma > 0.0 ? chosen.gm_tau_s : 0.0;
-    axis.rw_density = best.amplitude > 0.0 ? chosen.rw_density * c : 0.0;
+    const AxisNoiseModel slow = scaled_shape(chosen, best.amplitude);
+    axis.gm_sigma = slow.gm_sigma;
+    axis.gm_tau_s = slow.gm_tau_s;
+    axis.rw_density = slow.rw_density;
     note << " " << "uvw"[s] << " gm " << axis.gm_sigma << " m/s^2 " << axis.gm_tau_s << " s, rw "
          << axis.rw_density << " (m/s^2)/sqrt(s);";
   }

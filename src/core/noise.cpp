@@ -528,6 +528,44 @@ std::optional<LongRest> find_long_rest(const PositionTable& table, double initia
   return std::nullopt;
 }
 
+namespace {
+
+// The samples stamped in [first, last] cut into blocks of equal duration (kRestBlocks, fewer
+// when that would make them shorter than 1 s): each block's mean, std, n and its first and last
+// stamps.
+std::vector<DwellRecord> rest_blocks(const std::vector<double>& stamps_s,
+                                     const std::vector<Eigen::Vector3d>& outputs, double first,
+                                     double last) {
+  const double span = last - first;
+  const int count = std::max(1, std::min(kRestBlocks, static_cast<int>(std::floor(span))));
+  const double length = span / count;
+  std::vector<DwellRecord> blocks(static_cast<std::size_t>(count));
+  std::vector<Eigen::Vector3d> sum_sq(blocks.size(), Eigen::Vector3d::Zero());
+  for (std::size_t i = 0; i < stamps_s.size(); ++i) {
+    if (stamps_s[i] < first || stamps_s[i] > last) continue;
+    const std::size_t b = std::min(blocks.size() - 1,
+                                   static_cast<std::size_t>((stamps_s[i] - first) / length));
+    DwellRecord& block = blocks[b];
+    if (block.n == 0) block.t_start_s = stamps_s[i];
+    block.t_end_s = stamps_s[i];
+    // Welford: the outputs are about g, their spread a thousandth of it.
+    ++block.n;
+    const Eigen::Vector3d delta = outputs[i] - block.mean;
+    block.mean += delta / static_cast<double>(block.n);
+    sum_sq[b] += delta.cwiseProduct(outputs[i] - block.mean);
+  }
+  std::vector<DwellRecord> out;
+  for (std::size_t b = 0; b < blocks.size(); ++b) {
+    if (blocks[b].n < 2) continue;
+    blocks[b].std = (sum_sq[b] / static_cast<double>(blocks[b].n - 1)).cwiseSqrt();
+    blocks[b].orientation_unknown = true;
+    out.push_back(blocks[b]);
+  }
+  return out;
+}
+
+}  // namespace
+
 std::optional<NoiseModel> noise_model_of_run(const PositionTable& table,
                                              const std::vector<double>& stamps_s,
                                              const std::vector<Eigen::Vector3d>& outputs,
@@ -548,6 +586,7 @@ std::optional<NoiseModel> noise_model_of_run(const PositionTable& table,
   m.source = rest->reason;
   m.rest_t_start_s = rest->t_start_s;
   m.rest_t_end_s = rest->t_end_s;
+  m.rest_blocks = rest_blocks(stamps_s, outputs, first, last);
   return m;
 }
 

@@ -391,10 +391,19 @@ TEST(CorrelatedNoise, TumbleSimulatorSlowBiasIsTheGimbalSimulatorsProcess) {
 // model: the offsets carry the walk's whole excursion over the 5 min run, and a 120 s rest sees a
 // walk poorly (over seeds 7000..7007 the rest's fit found a walk on 16 of the 24 axes, a
 // Gauss-Markov part instead on 6, mostly at the grid's lowest 0.5 s, and nothing on 2), so its
-// model is usually short of the run's slow variance. What holds there is asserted: better than white.
+// model is usually short of the run's slow variance.
+// The cure calibrate() applies, tumble.h slow_part_from_tumble: the slow part fitted again to the
+// rest's blocks and the other rests together, a random walk kept where the data do not reject it
+// (fourth figure; measured when written): Gauss-Markov intrinsics 1.10, offsets 0.84; random walk
+// intrinsics 1.05, offsets 1.32. Tried before that rule: the best shape by likelihood alone,
+// offsets 1.14 / 2.17; the rests alone without the rest's blocks, 1.74 / 3.35 (about 20 degrees
+// of freedom for three accelerometers). The walk's offsets stay above 1 because its density
+// comes from about ten rests per axis (+-45 % over seeds 7000..7009); asserted: within 1.45 and
+// far better than the rest's model.
 struct TumbleCoverage {
-  Coverage intrinsics[3];  // white, true model, estimated model
-  Coverage offsets[3];
+  // white, true model, estimated from the rest, estimated and fitted to the run (as calibrate())
+  Coverage intrinsics[4];
+  Coverage offsets[4];
 };
 
 TumbleCoverage tumble_coverage(double gm_sigma, double gm_tau_s, double random_walk,
@@ -405,9 +414,10 @@ TumbleCoverage tumble_coverage(double gm_sigma, double gm_tau_s, double random_w
                                      random_walk);
     const std::optional<NoiseModel> estimated = noise_model_of_run(t.table, t.stamps, t.outputs);
     if (!estimated) throw std::runtime_error("no first rest of 30 s found");
-    const NoiseModel models[3] = {NoiseModel(), true_noise_model(t.options), *estimated};
+    const NoiseModel models[4] = {NoiseModel(), true_noise_model(t.options), *estimated,
+                                  slow_part_from_tumble(t.table, *estimated)};
     const Intrinsics in = intrinsics_from_vectors(t.options.truth.S);
-    for (int m = 0; m < 3; ++m) {
+    for (int m = 0; m < 4; ++m) {
       FitOptions fo;
       fo.noise_model = models[m];
       const FitResult f = fit(t.table, fo);
@@ -420,10 +430,12 @@ TumbleCoverage tumble_coverage(double gm_sigma, double gm_tau_s, double random_w
       }
     }
   }
-  std::cout << "[ INFO     ] tumble RMS z (white, true model, estimated model): intrinsics "
+  std::cout << "[ INFO     ] tumble RMS z (white, true model, rest's model, fitted to the run): "
+               "intrinsics "
             << c.intrinsics[0].rms() << " " << c.intrinsics[1].rms() << " "
-            << c.intrinsics[2].rms() << ", offsets " << c.offsets[0].rms() << " "
-            << c.offsets[1].rms() << " " << c.offsets[2].rms() << "\n";
+            << c.intrinsics[2].rms() << " " << c.intrinsics[3].rms() << ", offsets "
+            << c.offsets[0].rms() << " " << c.offsets[1].rms() << " " << c.offsets[2].rms() << " "
+            << c.offsets[3].rms() << "\n";
   return c;
 }
 
@@ -432,7 +444,7 @@ TEST(CorrelatedNoise, TumbleCoverageGaussMarkov) {
   const TumbleCoverage c = tumble_coverage(0.003, 30.0, 0.0, 6000, runs);
   const std::pair<double, double> band = statistical_bounds::chi2_band(runs, 1e-3);
   const double lo = std::sqrt(band.first / runs), hi = std::sqrt(band.second / runs);
-  for (int m : {1, 2}) {
+  for (int m : {1, 2, 3}) {
     EXPECT_GT(c.intrinsics[m].rms(), lo) << m;
     EXPECT_LT(c.intrinsics[m].rms(), hi) << m;
     EXPECT_GT(c.offsets[m].rms(), lo) << m;
@@ -446,15 +458,19 @@ TEST(CorrelatedNoise, TumbleCoverageRandomWalk) {
   const TumbleCoverage c = tumble_coverage(0.0, 0.0, 2e-4, 7000, runs);
   const std::pair<double, double> band = statistical_bounds::chi2_band(runs, 1e-3);
   const double lo = std::sqrt(band.first / runs), hi = std::sqrt(band.second / runs);
-  for (int m : {1, 2}) {
+  for (int m : {1, 2, 3}) {
     EXPECT_GT(c.intrinsics[m].rms(), lo) << m;
     EXPECT_LT(c.intrinsics[m].rms(), hi) << m;
   }
-  // The offsets with the true model; with the rest's estimate only better than white (see above).
+  // The offsets: covered with the true model; with the rest's estimate only better than white;
+  // fitted to the run as calibrate() does, close (see above).
   EXPECT_GT(c.offsets[1].rms(), lo);
   EXPECT_LT(c.offsets[1].rms(), hi);
   EXPECT_GT(c.offsets[0].rms(), hi);
   EXPECT_LT(c.offsets[2].rms(), c.offsets[0].rms());
+  EXPECT_GT(c.offsets[3].rms(), lo);
+  EXPECT_LT(c.offsets[3].rms(), 1.45);
+  EXPECT_LT(c.offsets[3].rms(), 0.7 * c.offsets[2].rms());
 }
 
 // GLS with a slow part too small to matter is the white fit: the residuals' covariance built from
@@ -527,8 +543,10 @@ TEST(CorrelatedNoise, TumbleAnalysisWeighsTheRestsWithTheNoiseModel) {
   // Effect-free tumbles under a Gauss-Markov bias (seeds 8000..), analysed with the noise model
   // estimated from the first rest: every fit is GLS across the rests, its chi-square below the
   // white one (the first 40 also with white weights). An effect is named in at most the binomial
-  // (1 - 1e-3) quantile at alpha. Measured when written: 7 of 200 (3.5 %: 4 cubic and 2
-  // quadratic non-linearities, 1 offset drift), white weights 6 of 40; before GLS (each rest's
+  // (1 - 1e-3) quantile at alpha. Measured when written: 5 of 200 with the rest's slow part fitted
+  // again to the tumble as calibrate() does (7 of 200 with the rest's model alone: 4 cubic and 2
+  // quadratic non-linearities, 1 offset drift), white weights 6 of 40; under a random walk 2 of
+  // 100; before GLS (each rest's
   // variance inflated by its slow part) 4 of the first 40 and about 7.5 % over seeds 6000.. too,
   // mostly offset_drift: the rests' correlation read as a drift.
   // A hidden quadratic non-linearity is still named; calibrate() hands the fit's noise model to
@@ -541,9 +559,9 @@ TEST(CorrelatedNoise, TumbleAnalysisWeighsTheRestsWithTheNoiseModel) {
     const std::optional<NoiseModel> m = noise_model_of_run(t.table, t.stamps, t.outputs);
     ASSERT_TRUE(m.has_value());
     TumbleAnalysisOptions with_model = ao;
-    with_model.noise_model = *m;
+    with_model.noise_model = slow_part_from_tumble(t.table, *m);  // as calibrate() does
     const TumbleAnalysis a = analyze_tumble(t.table, with_model);
-    EXPECT_EQ(a.noise_model.kind(), m->kind());
+    EXPECT_EQ(a.noise_model.source, with_model.noise_model.source);
     if (!a.named.empty()) ++named_model;
     if (k >= white_runs) continue;
     const TumbleAnalysis white = analyze_tumble(t.table, ao);
@@ -554,6 +572,22 @@ TEST(CorrelatedNoise, TumbleAnalysisWeighsTheRestsWithTheNoiseModel) {
             << named_white << "/" << white_runs << ", estimated model " << named_model << "/"
             << runs << "\n";
   EXPECT_LE(named_model, statistical_bounds::binomial_upper(runs, ao.alpha, 1e-3));
+
+  // The same under a random-walk bias (2e-4 (m/s^2)/sqrt(s), seeds 8500..): the walk kept where
+  // the data do not reject it must not turn into named drifts.
+  const int walk_runs = 100;
+  int named_walk = 0;
+  for (int k = 0; k < walk_runs; ++k) {
+    const SlowTumble t = slow_tumble(8500 + static_cast<std::uint64_t>(k), 0.0, 0.0, 2e-4);
+    const std::optional<NoiseModel> m = noise_model_of_run(t.table, t.stamps, t.outputs);
+    ASSERT_TRUE(m.has_value());
+    TumbleAnalysisOptions with_model = ao;
+    with_model.noise_model = slow_part_from_tumble(t.table, *m);
+    if (!analyze_tumble(t.table, with_model).named.empty()) ++named_walk;
+  }
+  std::cout << "[ INFO     ] effect-free random-walk tumbles naming an effect: " << named_walk
+            << "/" << walk_runs << "\n";
+  EXPECT_LE(named_walk, statistical_bounds::binomial_upper(walk_runs, ao.alpha, 1e-3));
 
   const Effect hidden = make_effect("quadratic_nonlinearity", "v", 4e-4);
   const SlowTumble t = slow_tumble(8100, 0.003, 30.0, 0.0, {hidden});

@@ -161,9 +161,35 @@ TEST(TumbleSession, FirstLongRestGivesTheReportItsNoiseModel) {
     EXPECT_EQ(live->axes[s].gm_tau_s, whole->axes[s].gm_tau_s) << s;
     EXPECT_EQ(live->axes[s].rw_density, whole->axes[s].rw_density) << s;
   }
+  // The rest's blocks: 30 of 4 s, every sample of the rest in one.
+  ASSERT_EQ(live->rest_blocks.size(), static_cast<std::size_t>(kRestBlocks));
+  std::size_t in_blocks = 0;
+  for (const DwellRecord& b : live->rest_blocks) {
+    in_blocks += b.n;
+    EXPECT_NEAR(b.t_end_s - b.t_start_s, 4.0, 0.05);
+  }
+  EXPECT_EQ(in_blocks, live->rest_samples);
+  ASSERT_EQ(live->rest_blocks.size(), whole->rest_blocks.size());
+  for (std::size_t b = 0; b < live->rest_blocks.size(); ++b) {
+    EXPECT_EQ(live->rest_blocks[b].n, whole->rest_blocks[b].n) << b;
+    EXPECT_EQ(live->rest_blocks[b].mean, whole->rest_blocks[b].mean) << b;
+  }
+  // The report: the rest's slow part fitted again to the whole tumble, as calibrate() does.
   const CalibrationReport report = session.report(CalibrateOptions());
-  EXPECT_EQ(report.certificate.noise_model.kind(), live->kind());
+  const NoiseModel fitted = slow_part_from_tumble(session.table(), *live);
+  EXPECT_EQ(report.certificate.noise_model.source, fitted.source);
+  EXPECT_EQ(report.certificate.noise_model.kind(), fitted.kind());
   EXPECT_EQ(report.certificate.noise_model.rest_samples, live->rest_samples);
+
+  // Nothing to fit the slow part to without the rest's blocks (a model given, not measured), and
+  // a white model stays white.
+  NoiseModel given = *live;
+  given.rest_blocks.clear();
+  const NoiseModel unchanged = slow_part_from_tumble(session.table(), given);
+  EXPECT_EQ(unchanged.source, given.source);
+  for (int s = 0; s < 3; ++s) EXPECT_EQ(unchanged.axes[s].gm_sigma, given.axes[s].gm_sigma) << s;
+  EXPECT_TRUE(slow_part_from_tumble(session.table(), NoiseModel()).white());
+  EXPECT_NE(fitted.source.find("long rest's blocks"), std::string::npos) << fitted.source;
 
   TumbleSimulationOptions short_first = o;
   short_first.initial_rest_s = 5.0;

@@ -122,6 +122,11 @@ struct NoiseModel {
   double rest_t_start_s = 0.0;
   double rest_t_end_s = 0.0;
   std::size_t rest_samples = 0;
+  // The long rest cut into consecutive blocks (noise_model_of_run: about 30 of at least 1 s;
+  // mean, std and n of each): what the rest saw of the slow part along all three accelerometers,
+  // for a fit of the slow part to the whole run (tumble.h slow_part_from_tumble). Empty when the
+  // model did not come from a recorded rest.
+  std::vector<DwellRecord> rest_blocks;
 
   // True when no axis has a slow part: every fit then weights by std / sqrt(n) exactly as
   // before.
@@ -162,8 +167,11 @@ struct LongRest {
 std::optional<LongRest> find_long_rest(const PositionTable& table, double initial_rest_s = 0.0);
 
 // The noise model of a run: its long rest found in the table, the raw samples (stamps, outputs)
-// that fall inside it estimated with estimate_noise_model; nothing when the run has no long rest
-// or fewer than 64 samples inside it.
+// that fall inside it estimated with estimate_noise_model, and the rest's blocks (rest_blocks:
+// the rest cut into kRestBlocks blocks of equal duration, at least 1 s each, a block with fewer
+// than 2 samples left out); nothing when the run has no long rest or fewer than 64 samples
+// inside it.
+constexpr int kRestBlocks = 30;
 std::optional<NoiseModel> noise_model_of_run(const PositionTable& table,
                                              const std::vector<double>& stamps_s,
                                              const std::vector<Eigen::Vector3d>& outputs,

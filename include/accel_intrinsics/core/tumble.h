@@ -49,6 +49,28 @@ struct TumbleFitOptions {
 // too few rests or rests that do not determine the ellipsoid, naming what to add.
 FitResult fit_tumble(const PositionTable& table, const TumbleFitOptions& options = {});
 
+// The rest's slow part fitted again to the whole tumble (DESIGN.md section 12), as
+// slow_part_from_run does for a gimbal run (discrepancy.h). A long rest's Allan fit sees a random
+// walk poorly (a 120 s rest took it for a short Gauss-Markov part or for nothing on a third of
+// the axes) while the offsets carry the walk's excursion over the whole run; the rests alone do
+// not suffice either (about 20 degrees of freedom for three accelerometers). So one restricted
+// likelihood takes both: the long rest's blocks (NoiseModel::rest_blocks) per accelerometer,
+// their level projected out, and the white fit's scalar residuals of the other rests with the
+// nine parameters projected out, with the slow covariance between all of them. Each
+// accelerometer's slow part is chosen among slow_part_shapes (slow_part_fit.h); a rest's residual
+// mixes the three accelerometers (through c_i = P^T a_hat_i), so the three are fitted together
+// by coordinate ascent. Where the data do not reject a random walk (log-likelihood within 2 of
+// the best shape) it is kept: one tumble cannot tell it from a long Gauss-Markov bias whose level
+// the offsets absorb, and the walk does not assume the bias stopped wandering (tumble.cpp).
+// Measured over 60 simulated tumbles each (test/core/correlated_noise_test.cpp), offsets' RMS
+// z-score with the model from the rest alone / fitted here: Gauss-Markov 0.91 / 0.84, random
+// walk 2.55 / 1.32 (1.0 is right; the walk's density comes from about ten rests per axis).
+// A white model, a model without rest blocks (given, not measured), a table
+// without usable stds or fewer than 13 rests come back unchanged; the source says what was
+// chosen. Throws FitError as fit_tumble.
+NoiseModel slow_part_from_tumble(const PositionTable& table, const NoiseModel& rest_model,
+                                 double local_gravity = kStandardGravity);
+
 // The unit specific force ("up") of each row in the sensor frame under a tumble fit.
 std::vector<Eigen::Vector3d> rest_up_directions(const FitResult& fit, const PositionTable& table);
 

@@ -1,0 +1,44 @@
+// The slow part of a noise model fitted to a whole run by restricted (REML) likelihood
+// (DESIGN.md section 12). One definition for the gimbal fit (discrepancy.h slow_part_from_run)
+// and the hand tumble (tumble.h slow_part_from_tumble): both hand it the part of their
+// normalized residuals outside their model's Jacobian (w = U^T z, U an orthonormal basis of the
+// complement) and the slow kernels projected the same way (U^T K U), and keep the shape and
+// amplitude of highest likelihood.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "accel_intrinsics/core/noise.h"
+
+namespace accel_intrinsics {
+namespace core {
+
+// The shapes a run's slow part is chosen among (unit amplitude, white_std 0): Gauss-Markov of
+// unit variance at correlation times from 0.5 s to 5 times the run's span (5 per decade), a
+// random walk of unit density, and the rest's own slow part when it has one (its amplitude free).
+std::vector<AxisNoiseModel> slow_part_shapes(double span_s, const AxisNoiseModel& rest_axis);
+
+// An orthonormal basis of the complement of X's column space (n x (n - rank)); zero columns when
+// X has full row rank.
+Eigen::MatrixXd residual_complement(const Eigen::MatrixXd& X);
+
+struct SlowAmplitude {
+  double amplitude = 0.0;
+  // Restricted log-likelihood up to a constant that is the same for every kernel against one
+  // base: compare values from one base only.
+  double log_likelihood = 0.0;
+};
+
+// The amplitude a >= 0 that maximizes the restricted likelihood of w ~ N(0, B + a M): w and M
+// already projected (w = U^T z, M = U^T K U), B = base_L base_L^T (an empty base_L: B = I).
+// a = 0, a logarithmic grid over twelve decades around 1 / mean eigenvalue, then a golden-section
+// refinement around the grid's best point.
+SlowAmplitude best_slow_amplitude(const Eigen::VectorXd& w, const Eigen::MatrixXd& M,
+                                  const Eigen::MatrixXd& base_L = Eigen::MatrixXd());
+
+// A shape scaled by an amplitude (variance factor): the axis model it stands for, white_std 0.
+AxisNoiseModel scaled_shape(const AxisNoiseModel& shape, double amplitude);
+
+}  // namespace core
+}  // namespace accel_intrinsics

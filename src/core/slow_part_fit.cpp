@@ -1,0 +1,108 @@
+#include "accel_intrinsics/core/slow_part_fit.h"
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <limits>
+
+namespace accel_intrinsics {
+namespace core {
+
+namespace {
+
+// Restricted log-likelihood of w ~ N(0, I + a diag(lambda)), w in the eigenbasis of the
+// (whitened) projected kernel (w2 = squared components), up to a constant.
+double restricted_log_likelihood(double a, const Eigen::VectorXd& lambda,
+                                 const Eigen::VectorXd& w2) {
+  double l = 0.0;
+  for (Eigen::Index i = 0; i < lambda.size(); ++i) {
+    const double v = 1.0 + a * lambda(i);
+    l -= 0.5 * (std::log(v) + w2(i) / v);
+  }
+  return l;
+}
+
+}  // namespace
+
+std::vector<AxisNoiseModel> slow_part_shapes(double span_s, const AxisNoiseModel& rest_axis) {
+  std::vector<AxisNoiseModel> shapes;
+  for (double tau = 0.5; tau <= 5.0 * span_s; tau *= std::pow(10.0, 0.2))
+    shapes.push_back(AxisNoiseModel{0.0, 1.0, tau, 0.0});
+  shapes.push_back(AxisNoiseModel{0.0, 0.0, 0.0, 1.0});
+  AxisNoiseModel own = rest_axis;
+  own.white_std = 0.0;
+  if (own.slow()) shapes.push_back(own);
+  return shapes;
+}
+
+Eigen::MatrixXd residual_complement(const Eigen::MatrixXd& X) {
+  const Eigen::Index n = X.rows();
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(X);
+  const Eigen::Index rank = qr.rank();
+  const Eigen::MatrixXd full_q = qr.householderQ() * Eigen::MatrixXd::Identity(n, n);
+  return full_q.rightCols(n - rank);
+}
+
+SlowAmplitude best_slow_amplitude(const Eigen::VectorXd& w_in, const Eigen::MatrixXd& M_in,
+                                  const Eigen::MatrixXd& base_L) {
+  // Against a base B = L L^T: w -> L^-1 w, M -> L^-1 M L^-T turns B + a M into I + a M'.
+  Eigen::VectorXd w = w_in;
+  Eigen::MatrixXd M = M_in;
+  if (base_L.size() > 0) {
+    base_L.triangularView<Eigen::Lower>().solveInPlace(w);
+    base_L.triangularView<Eigen::Lower>().solveInPlace(M);
+    Eigen::MatrixXd Mt = M.transpose();
+    base_L.triangularView<Eigen::Lower>().solveInPlace(Mt);
+    M = 0.5 * (Mt + Mt.transpose());
+  }
+  SlowAmplitude best;
+  best.log_likelihood = -std::numeric_limits<double>::infinity();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(M);
+  if (eig.info() != Eigen::Success) return best;
+  const Eigen::VectorXd lambda = eig.eigenvalues().cwiseMax(0.0);
+  const Eigen::VectorXd w2 = (eig.eigenvectors().transpose() * w).cwiseAbs2();
+  best.log_likelihood = restricted_log_likelihood(0.0, lambda, w2);
+  const double mean = lambda.size() > 0 ? lambda.mean() : 0.0;
+  if (!(mean > 0.0)) return best;
+  const int points = 97;  // 8 per decade
+  double best_log = std::numeric_limits<double>::quiet_NaN();
+  for (int k = 0; k < points; ++k) {
+    const double log_a = std::log(1.0 / mean) + std::log(10.0) * (-6.0 + 12.0 * k / (points - 1));
+    const double l = restricted_log_likelihood(std::exp(log_a), lambda, w2);
+    if (l > best.log_likelihood) {
+      best.log_likelihood = l;
+      best.amplitude = std::exp(log_a);
+      best_log = log_a;
+    }
+  }
+  if (!std::isfinite(best_log)) return best;
+  double lo = best_log - std::log(10.0) / 8.0, hi = best_log + std::log(10.0) / 8.0;
+  const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
+  for (int iteration = 0; iteration < 40; ++iteration) {
+    const double a = hi - phi * (hi - lo), b = lo + phi * (hi - lo);
+    if (restricted_log_likelihood(std::exp(a), lambda, w2) >
+        restricted_log_likelihood(std::exp(b), lambda, w2)) {
+      hi = b;
+    } else {
+      lo = a;
+    }
+  }
+  const double l = restricted_log_likelihood(std::exp(0.5 * (lo + hi)), lambda, w2);
+  if (l > best.log_likelihood) {
+    best.log_likelihood = l;
+    best.amplitude = std::exp(0.5 * (lo + hi));
+  }
+  return best;
+}
+
+AxisNoiseModel scaled_shape(const AxisNoiseModel& shape, double amplitude) {
+  AxisNoiseModel axis;
+  if (!(amplitude > 0.0)) return axis;
+  const double c = std::sqrt(amplitude);
+  axis.gm_sigma = shape.gm_sigma * c;
+  axis.gm_tau_s = axis.gm_sigma > 0.0 ? shape.gm_tau_s : 0.0;
+  axis.rw_density = shape.rw_density * c;
+  return axis;
+}
+
+}  // namespace core
+}  // namespace accel_intrinsics
