@@ -663,7 +663,8 @@ NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& opti
   std::ostringstream note;
   note << std::setprecision(3)
        << "; slow part fitted to the run's dwell means (restricted maximum likelihood, the shape "
-          "chosen among Gauss-Markov times, a random walk and the rest's own):";
+          "chosen among Gauss-Markov times, a random walk and the rest's own; in the outputs' "
+          "unit):";
   for (int s = 0; s < 3; ++s) {
     // Axis s: normalized residuals and the Jacobian's rows of this accelerometer.
     Eigen::VectorXd z(n);
@@ -702,8 +703,8 @@ NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& opti
     axis.gm_sigma = slow.gm_sigma;
     axis.gm_tau_s = slow.gm_tau_s;
     axis.rw_density = slow.rw_density;
-    note << " " << "uvw"[s] << " gm " << axis.gm_sigma << " m/s^2 " << axis.gm_tau_s << " s, rw "
-         << axis.rw_density << " (m/s^2)/sqrt(s);";
+    note << " " << "uvw"[s] << " gm " << axis.gm_sigma << " over " << axis.gm_tau_s << " s, rw "
+         << axis.rw_density << " per sqrt(s);";
   }
   model.source += note.str();
   return model;

@@ -558,9 +558,9 @@ NoiseModel slow_part_from_tumble(const PositionTable& table, const NoiseModel& r
         changed = true;
       chosen[s] = best_shape;
       fitted[s] = next;
-      held[s] = best_shape >= 0
-                    ? Eigen::MatrixXd(best.amplitude * kernels[s][static_cast<std::size_t>(best_shape)])
-                    : Eigen::MatrixXd::Zero(k, k);
+      held[s] = Eigen::MatrixXd::Zero(k, k);
+      if (best_shape >= 0)
+        held[s] = best.amplitude * kernels[s][static_cast<std::size_t>(best_shape)];
     }
     if (!changed) break;
   }
@@ -568,14 +568,14 @@ NoiseModel slow_part_from_tumble(const PositionTable& table, const NoiseModel& r
   note << std::setprecision(3)
        << "; slow part fitted to the long rest's blocks and the tumble's rest means together "
           "(restricted maximum likelihood, the shape chosen among Gauss-Markov times, a random "
-          "walk and the rest's own):";
+          "walk and the rest's own; in the outputs' unit):";
   for (int s = 0; s < 3; ++s) {
     AxisNoiseModel& axis = model.axes[s];
     axis.gm_sigma = fitted[s].gm_sigma;
     axis.gm_tau_s = fitted[s].gm_tau_s;
     axis.rw_density = fitted[s].rw_density;
-    note << " " << "uvw"[s] << " gm " << axis.gm_sigma << " m/s^2 " << axis.gm_tau_s << " s, rw "
-         << axis.rw_density << " (m/s^2)/sqrt(s);";
+    note << " " << "uvw"[s] << " gm " << axis.gm_sigma << " over " << axis.gm_tau_s << " s, rw "
+         << axis.rw_density << " per sqrt(s);";
   }
   model.source += note.str();
   return model;
