@@ -94,6 +94,33 @@ SlowAmplitude best_slow_amplitude(const Eigen::VectorXd& w_in, const Eigen::Matr
   return best;
 }
 
+SlowShapeChoice choose_slow_shape(const Eigen::VectorXd& w,
+                                  const std::vector<Eigen::MatrixXd>& projected_kernels,
+                                  const std::vector<AxisNoiseModel>& shapes,
+                                  const Eigen::MatrixXd& base_L) {
+  SlowShapeChoice best;
+  best.fit.log_likelihood = -std::numeric_limits<double>::infinity();
+  int walk = -1;
+  SlowAmplitude walk_fit;
+  for (std::size_t c = 0; c < shapes.size(); ++c) {
+    const SlowAmplitude f = best_slow_amplitude(w, projected_kernels[c], base_L);
+    if (f.log_likelihood > best.fit.log_likelihood) {
+      best.fit = f;
+      best.shape = f.amplitude > 0.0 ? static_cast<int>(c) : -1;
+    }
+    if (walk < 0 && shapes[c].rw_density > 0.0 && shapes[c].gm_sigma == 0.0) {
+      walk = static_cast<int>(c);
+      walk_fit = f;
+    }
+  }
+  if (walk >= 0 && walk_fit.amplitude > 0.0 &&
+      walk_fit.log_likelihood >= best.fit.log_likelihood - kWalkLikelihoodMargin) {
+    best.shape = walk;
+    best.fit = walk_fit;
+  }
+  return best;
+}
+
 AxisNoiseModel scaled_shape(const AxisNoiseModel& shape, double amplitude) {
   AxisNoiseModel axis;
   if (!(amplitude > 0.0)) return axis;

@@ -22,9 +22,6 @@ const char* const kTumbleFrame =
 namespace {
 
 constexpr int kParams = 9;  // S lower-triangular (6) then O (3)
-// slow_part_from_tumble keeps a random walk whose restricted log-likelihood is within this of
-// the best shape's (a likelihood ratio of e^2, the 95 % point of a one-parameter chi-square /2).
-constexpr double kWalkLikelihoodMargin = 2.0;
 // Row-major index in S of each lower-triangular parameter.
 constexpr std::array<int, 6> kLowerIndex{{0, 3, 4, 6, 7, 8}};
 constexpr std::array<int, 6> kLowerRow{{0, 1, 1, 2, 2, 2}};
@@ -520,34 +517,9 @@ NoiseModel slow_part_from_tumble(const PositionTable& table, const NoiseModel& r
       const Eigen::LLT<Eigen::MatrixXd> llt(B);
       if (llt.info() != Eigen::Success) return model;
       const Eigen::MatrixXd L = llt.matrixL();
-      SlowAmplitude best;
-      best.log_likelihood = -std::numeric_limits<double>::infinity();
-      int best_shape = -1;
-      int walk = -1;  // the plain random walk's index and fit
-      SlowAmplitude walk_fit;
-      for (std::size_t c = 0; c < shapes[s].size(); ++c) {
-        const SlowAmplitude f = best_slow_amplitude(w, kernels[s][c], L);
-        if (f.log_likelihood > best.log_likelihood) {
-          best = f;
-          best_shape = best.amplitude > 0.0 ? static_cast<int>(c) : -1;
-        }
-        if (walk < 0 && shapes[s][c].rw_density > 0.0 && shapes[s][c].gm_sigma == 0.0) {
-          walk = static_cast<int>(c);
-          walk_fit = f;
-        }
-      }
-      // One tumble cannot tell a random walk from a Gauss-Markov bias of long correlation time
-      // (whose level the offsets absorb, so the run never sees its variance) or from a shorter
-      // one: on random-walk tumbles the best shape was a Gauss-Markov one on about half the axes,
-      // and the offsets' uncertainties came out 2.2 times too small (RMS z). A random walk that
-      // the data do not reject is kept instead: its variance keeps growing over the run, so the
-      // offsets' uncertainty does not rest on the bias having stopped wandering. Measured on
-      // Gauss-Markov tumbles this costs little (offsets RMS z 0.84 instead of 0.91).
-      if (walk >= 0 && walk_fit.amplitude > 0.0 &&
-          walk_fit.log_likelihood >= best.log_likelihood - kWalkLikelihoodMargin) {
-        best = walk_fit;
-        best_shape = walk;
-      }
+      const SlowShapeChoice choice = choose_slow_shape(w, kernels[s], shapes[s], L);
+      const int best_shape = choice.shape;
+      const SlowAmplitude& best = choice.fit;
       const AxisNoiseModel next =
           best_shape >= 0 ? scaled_shape(shapes[s][static_cast<std::size_t>(best_shape)],
                                          best.amplitude)

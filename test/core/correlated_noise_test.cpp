@@ -296,29 +296,50 @@ TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesGaussMarkov) {
 }
 
 TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesRandomWalk) {
-  // A random-walk bias (1e-4 (m/s^2)/sqrt(s): 2 mm/s^2 after 400 s). Responsivities and angles
-  // (the offsets carry the walk's value at the first dwell, which no model of the run can see).
+  // A random-walk bias (1e-4 (m/s^2)/sqrt(s): 2 mm/s^2 after 400 s). Responsivities and angles,
+  // with the true model and as calibrate() reports (the rest's model fitted again to the run),
+  // and the offsets apart. Measured when written: white 1.84, true model 1.02, fitted to the run
+  // 1.08; offsets true model 1.02, fitted to the run 2.27 (2.80 before a random walk not
+  // rejected was preferred, slow_part_fit.h): the offsets carry the walk's excursion over the
+  // run, and its density from the dwells' residuals is short on most seeds. Not covered; asserted:
+  // no worse than that.
   const int runs = 60;
-  Coverage white, true_model;
+  Coverage white, true_model, refined, refined_offsets, true_offsets;
   for (int k = 0; k < runs; ++k) {
     SimulationOptions so = issue_scenario(900 + static_cast<std::uint64_t>(k));
     so.bias_gm_sigma = 0.0;
     so.bias_random_walk = 1e-4;
-    const PositionTable table = simulate_position_table(so);
+    RestSamples rest;
+    const PositionTable table = simulate_position_table(so, &rest);
     FitOptions fo;
     add_z(fit(table, fo), so, &white, false);
     fo.noise_model = true_noise_model(so);
     EXPECT_EQ(fo.noise_model.kind(), "random_walk");
-    add_z(fit(table, fo), so, &true_model, false);
+    const FitResult ft = fit(table, fo);
+    add_z(ft, so, &true_model, false);
+    for (int s = 0; s < 3; ++s) true_offsets.add((ft.O(s) - so.truth.O(s)) / ft.O_std(s));
+    // As calibrate() reports: the rest's model fitted again to the run.
+    fo.noise_model = estimated_model(table, rest, so.protocol.initial_rest_s);
+    fo.noise_model = slow_part_from_run(table, fo);
+    const FitResult fr = fit(table, fo);
+    add_z(fr, so, &refined, false);
+    for (int s = 0; s < 3; ++s) refined_offsets.add((fr.O(s) - so.truth.O(s)) / fr.O_std(s));
   }
   std::cout << "[ INFO     ] random-walk coverage, RMS z over " << runs
             << " runs x 6 parameters: white " << white.rms() << ", true model "
-            << true_model.rms() << "\n";
+            << true_model.rms() << ", estimated and fitted to the run " << refined.rms()
+            << "; offsets: true model " << true_offsets.rms() << ", fitted to the run "
+            << refined_offsets.rms() << "\n";
   const std::pair<double, double> band = statistical_bounds::chi2_band(runs, 1e-3);
   const double lo = std::sqrt(band.first / runs), hi = std::sqrt(band.second / runs);
   EXPECT_GT(white.rms(), 1.3);
   EXPECT_GT(true_model.rms(), lo);
   EXPECT_LT(true_model.rms(), hi);
+  EXPECT_GT(refined.rms(), lo);
+  EXPECT_LT(refined.rms(), hi);
+  EXPECT_GT(true_offsets.rms(), lo);
+  EXPECT_LT(true_offsets.rms(), hi);
+  EXPECT_LT(refined_offsets.rms(), 2.4);
 }
 
 // ---- the hand tumble under a slow bias -----------------------------------------------------------
