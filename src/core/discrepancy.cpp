@@ -654,17 +654,8 @@ NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& opti
   Eigen::MatrixXd J(3 * n, p);
   for (int j = 0; j < p; ++j)
     J.col(j) = weighted_derivative(geoms, se, device, device.effects, j, options.local_gravity);
-  double t_first = table.rows.front().t_start_s, t_last = table.rows.front().t_end_s;
-  for (const DwellRecord& r : table.rows) {
-    t_first = std::min(t_first, r.t_start_s);
-    t_last = std::max(t_last, r.t_end_s);
-  }
-  const double span = std::max(t_last - t_first, 1.0);
-  std::ostringstream note;
-  note << std::setprecision(3)
-       << "; slow part fitted to the run's dwell means (restricted maximum likelihood, the shape "
-          "chosen among Gauss-Markov times, a random walk and the rest's own; in the outputs' "
-          "unit):";
+  const double t_first = run_span(table).t_first;
+  const double span = std::max(run_span(table).length(), 1.0);
   for (int s = 0; s < 3; ++s) {
     // Axis s: normalized residuals and the Jacobian's rows of this accelerometer.
     Eigen::VectorXd z(n);
@@ -705,10 +696,8 @@ NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& opti
     axis.gm_sigma = slow.gm_sigma;
     axis.gm_tau_s = slow.gm_tau_s;
     axis.rw_density = slow.rw_density;
-    note << " " << "uvw"[s] << " gm " << axis.gm_sigma << " over " << axis.gm_tau_s << " s, rw "
-         << axis.rw_density << " per sqrt(s);";
   }
-  model.source += note.str();
+  model.source += slow_part_note("the run's dwell means", model);
   return model;
 }
 

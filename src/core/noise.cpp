@@ -540,24 +540,21 @@ std::vector<DwellRecord> rest_blocks(const std::vector<double>& stamps_s,
   const int count = std::max(1, std::min(kRestBlocks, static_cast<int>(std::floor(span))));
   const double length = span / count;
   std::vector<DwellRecord> blocks(static_cast<std::size_t>(count));
-  std::vector<Eigen::Vector3d> sum_sq(blocks.size(), Eigen::Vector3d::Zero());
+  std::vector<DwellAccumulator> stats(blocks.size());
   for (std::size_t i = 0; i < stamps_s.size(); ++i) {
     if (stamps_s[i] < first || stamps_s[i] > last) continue;
     const std::size_t b = std::min(blocks.size() - 1,
                                    static_cast<std::size_t>((stamps_s[i] - first) / length));
-    DwellRecord& block = blocks[b];
-    if (block.n == 0) block.t_start_s = stamps_s[i];
-    block.t_end_s = stamps_s[i];
-    // Welford: the outputs are about g, their spread a thousandth of it.
-    ++block.n;
-    const Eigen::Vector3d delta = outputs[i] - block.mean;
-    block.mean += delta / static_cast<double>(block.n);
-    sum_sq[b] += delta.cwiseProduct(outputs[i] - block.mean);
+    if (stats[b].count() == 0) blocks[b].t_start_s = stamps_s[i];
+    blocks[b].t_end_s = stamps_s[i];
+    stats[b].add(outputs[i]);
   }
   std::vector<DwellRecord> out;
   for (std::size_t b = 0; b < blocks.size(); ++b) {
-    if (blocks[b].n < 2) continue;
-    blocks[b].std = (sum_sq[b] / static_cast<double>(blocks[b].n - 1)).cwiseSqrt();
+    if (stats[b].count() < 2) continue;
+    blocks[b].n = stats[b].count();
+    blocks[b].mean = stats[b].mean();
+    blocks[b].std = stats[b].sample_std();
     blocks[b].orientation_unknown = true;
     out.push_back(blocks[b]);
   }

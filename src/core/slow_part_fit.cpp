@@ -1,8 +1,11 @@
 #include "accel_intrinsics/core/slow_part_fit.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <limits>
+#include <sstream>
 
 namespace accel_intrinsics {
 namespace core {
@@ -119,6 +122,31 @@ SlowShapeChoice choose_slow_shape(const Eigen::VectorXd& w,
     best.fit = walk_fit;
   }
   return best;
+}
+
+RunSpan run_span(const PositionTable& table) {
+  RunSpan span;
+  if (table.rows.empty()) return span;
+  span.t_first = table.rows.front().t_start_s;
+  span.t_last = table.rows.front().t_end_s;
+  for (const DwellRecord& r : table.rows) {
+    span.t_first = std::min(span.t_first, r.t_start_s);
+    span.t_last = std::max(span.t_last, r.t_end_s);
+  }
+  return span;
+}
+
+std::string slow_part_note(const std::string& fitted_to, const NoiseModel& model) {
+  std::ostringstream note;
+  note << std::setprecision(3) << "; slow part fitted to " << fitted_to
+       << " (restricted maximum likelihood, the shape chosen among Gauss-Markov times, a random "
+          "walk and the rest's own; in the outputs' unit):";
+  for (int s = 0; s < 3; ++s) {
+    const AxisNoiseModel& axis = model.axes[s];
+    note << " " << "uvw"[s] << " gm " << axis.gm_sigma << " over " << axis.gm_tau_s << " s, rw "
+         << axis.rw_density << " per sqrt(s);";
+  }
+  return note.str();
 }
 
 AxisNoiseModel scaled_shape(const AxisNoiseModel& shape, double amplitude) {

@@ -471,12 +471,8 @@ NoiseModel slow_part_from_tumble(const PositionTable& table, const NoiseModel& r
   const Eigen::MatrixXd U = residual_complement(X);
   if (U.cols() < 4) return model;
   const Eigen::VectorXd w = U.transpose() * z;
-  double t_first = table.rows.front().t_start_s, t_last = table.rows.front().t_end_s;
-  for (const DwellRecord& r : table.rows) {
-    t_first = std::min(t_first, r.t_start_s);
-    t_last = std::max(t_last, r.t_end_s);
-  }
-  const double span = std::max(t_last - t_first, 1.0);
+  const double t_first = run_span(table).t_first;
+  const double span = std::max(run_span(table).length(), 1.0);
   // Each accelerometer's candidate kernels, projected: U^T K U with K(i, j) = load_i(s) load_j(s)
   // Cov_unit(i, j) over the observations' intervals.
   std::vector<AxisNoiseModel> shapes[3];
@@ -536,20 +532,14 @@ NoiseModel slow_part_from_tumble(const PositionTable& table, const NoiseModel& r
     }
     if (!changed) break;
   }
-  std::ostringstream note;
-  note << std::setprecision(3)
-       << "; slow part fitted to the long rest's blocks and the tumble's rest means together "
-          "(restricted maximum likelihood, the shape chosen among Gauss-Markov times, a random "
-          "walk and the rest's own; in the outputs' unit):";
   for (int s = 0; s < 3; ++s) {
     AxisNoiseModel& axis = model.axes[s];
     axis.gm_sigma = fitted[s].gm_sigma;
     axis.gm_tau_s = fitted[s].gm_tau_s;
     axis.rw_density = fitted[s].rw_density;
-    note << " " << "uvw"[s] << " gm " << axis.gm_sigma << " over " << axis.gm_tau_s << " s, rw "
-         << axis.rw_density << " per sqrt(s);";
   }
-  model.source += note.str();
+  model.source +=
+      slow_part_note("the long rest's blocks and the tumble's rest means together", model);
   return model;
 }
 

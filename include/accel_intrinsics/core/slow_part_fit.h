@@ -7,9 +7,11 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "accel_intrinsics/core/noise.h"
+#include "accel_intrinsics/core/position_table.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -57,6 +59,18 @@ SlowShapeChoice choose_slow_shape(const Eigen::VectorXd& w,
                                   const std::vector<Eigen::MatrixXd>& projected_kernels,
                                   const std::vector<AxisNoiseModel>& shapes,
                                   const Eigen::MatrixXd& base_L = Eigen::MatrixXd());
+
+// The time span of a run's rows: earliest t_start and latest t_end.
+struct RunSpan {
+  double t_first = 0.0;
+  double t_last = 0.0;
+  double length() const { return t_last - t_first; }
+};
+RunSpan run_span(const PositionTable& table);
+
+// What a fit of the slow part chose, for NoiseModel::source: "; slow part fitted to <what>
+// (restricted maximum likelihood, ...): u gm .. over .. s, rw .. per sqrt(s); v ...".
+std::string slow_part_note(const std::string& fitted_to, const NoiseModel& model);
 
 // A shape scaled by an amplitude (variance factor): the axis model it stands for, white_std 0.
 AxisNoiseModel scaled_shape(const AxisNoiseModel& shape, double amplitude);
