@@ -454,6 +454,8 @@ struct LinearJoint {
   Eigen::Matrix3d S;
   Eigen::Vector3d O;
   Eigen::Matrix<double, 12, 12> covariance;  // unscaled (A^T W A)^-1
+  // GLS only: the whitened Jacobian, 3 rows per dwell (u, v, w interleaved), 12 columns.
+  Eigen::MatrixXd whitened_jacobian;
 
   // Accelerometer s's unknowns x = (s_x, s_y, s_z, O_s) and the inverse of their normal matrix
   // `normal` (named in the error when it is singular) into S, O and the covariance.
@@ -508,6 +510,7 @@ LinearJoint solve_joint_gls(const PositionTable& table, const std::vector<Eigen:
   const Eigen::Index n = static_cast<Eigen::Index>(table.rows.size());
   LinearJoint out;
   out.covariance.setZero();
+  out.whitened_jacobian = Eigen::MatrixXd::Zero(3 * n, kNumLinear);
   for (int s = 0; s < 3; ++s) {
     Eigen::MatrixXd A(n, 4);
     Eigen::VectorXd y(n);
@@ -522,6 +525,9 @@ LinearJoint solve_joint_gls(const PositionTable& table, const std::vector<Eigen:
     corr.L[s].triangularView<Eigen::Lower>().solveInPlace(y);
     out.store(s, A.colPivHouseholderQr().solve(y), A.transpose() * A,
               "joint fit (generalized least squares)");
+    const int columns[4] = {3 * s, 3 * s + 1, 3 * s + 2, 9 + s};
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (int c = 0; c < 4; ++c) out.whitened_jacobian(3 * i + s, columns[c]) = A(i, c);
   }
   return out;
 }
@@ -542,7 +548,11 @@ FitResult fit_joint_linear(const PositionTable& table, const std::vector<Eigen::
     return lin.S * (specific_force_direction(row) * g) + lin.O;
   });
   apply_correlation(r, corr);
-  finish_result(r, lin.covariance * chi2_scale(r, unit_weights));
+  Eigen::Matrix<double, 12, 12> covariance = lin.covariance;
+  if (corr && has_estimated_scale(options.noise_model))
+    covariance = estimated_scale_covariance(options.noise_model, *corr, lin.whitened_jacobian,
+                                            lin.covariance);
+  finish_result(r, covariance * chi2_scale(r, unit_weights));
   for (int p = 0; p < 3; ++p) {
     r.offset_per_phase.col(p) = r.O;
     r.offset_per_phase_std.col(p) = r.O_std;
@@ -782,7 +792,9 @@ FitResult fit_joint_effects(const PositionTable& table, const std::vector<Eigen:
   std::vector<std::string> names;
   for (int j = 0; j < kNumLinear; ++j) names.push_back(linear_parameter_name(j));
   for (const Effect& e : options.effects) names.push_back(e.label());
-  const Eigen::MatrixXd cov_unscaled = checked_inverse(JtJ, names, label);
+  Eigen::MatrixXd cov_unscaled = checked_inverse(JtJ, names, label);
+  if (corr && has_estimated_scale(options.noise_model))
+    cov_unscaled = estimated_scale_covariance(options.noise_model, *corr, J, cov_unscaled);
 
   // Residuals as measured minus model: the normalized Ceres residual times -se.
   fill_residuals(r, table, se, num_params, [&](std::size_t i) -> Eigen::Vector3d {

@@ -674,5 +674,41 @@ std::shared_ptr<const DwellCorrelation> dwell_correlation(const PositionTable& t
   return out;
 }
 
+bool has_estimated_scale(const NoiseModel& model) {
+  for (const AxisNoiseModel& a : model.axes)
+    if (a.slow() && a.slow_scale_rel_var > 0.0) return true;
+  return false;
+}
+
+Eigen::MatrixXd estimated_scale_covariance(const NoiseModel& model, const DwellCorrelation& corr,
+                                           const Eigen::MatrixXd& whitened_jacobian,
+                                           const Eigen::MatrixXd& phi) {
+  const Eigen::Index n = static_cast<Eigen::Index>(corr.rows);
+  const Eigen::Index p = phi.rows();
+  if (whitened_jacobian.rows() != 3 * n || whitened_jacobian.cols() != p || phi.cols() != p)
+    throw std::invalid_argument("estimated_scale_covariance: the Jacobian is " +
+                                std::to_string(whitened_jacobian.rows()) + " x " +
+                                std::to_string(whitened_jacobian.cols()) + ", expected " +
+                                std::to_string(3 * n) + " x " + std::to_string(p));
+  Eigen::MatrixXd widening = Eigen::MatrixXd::Zero(p, p);
+  for (int s = 0; s < 3; ++s) {
+    const AxisNoiseModel& axis = model.axes[s];
+    if (!axis.slow() || !(axis.slow_scale_rel_var > 0.0)) continue;
+    Eigen::MatrixXd Js(n, p);
+    for (Eigen::Index i = 0; i < n; ++i) Js.row(i) = whitened_jacobian.row(3 * i + s);
+    // R = L L^T = I + slow part, so L^-1 (R - I) L^-T = I - L^-1 L^-T.
+    Eigen::MatrixXd inverse_L = Eigen::MatrixXd::Identity(n, n);
+    corr.L[s].triangularView<Eigen::Lower>().solveInPlace(inverse_L);
+    Eigen::MatrixXd H = -inverse_L * inverse_L.transpose();
+    H.diagonal().array() += 1.0;
+    const Eigen::MatrixXd HJ = H * Js;
+    const Eigen::MatrixXd P = Js.transpose() * HJ;
+    const Eigen::MatrixXd Q = HJ.transpose() * HJ;
+    widening += axis.slow_scale_rel_var * (Q - P * phi * P);
+  }
+  const Eigen::MatrixXd adjusted = phi + 2.0 * phi * widening * phi;
+  return 0.5 * (adjusted + adjusted.transpose());
+}
+
 }  // namespace core
 }  // namespace accel_intrinsics

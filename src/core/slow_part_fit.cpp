@@ -6,6 +6,7 @@
 #include <iomanip>
 #include <limits>
 #include <sstream>
+#include <vector>
 
 namespace accel_intrinsics {
 namespace core {
@@ -22,6 +23,16 @@ double restricted_log_likelihood(double a, const Eigen::VectorXd& lambda,
     l -= 0.5 * (std::log(v) + w2(i) / v);
   }
   return l;
+}
+
+// The expected (Fisher) information about a of the same likelihood.
+double amplitude_information(double a, const Eigen::VectorXd& lambda) {
+  double info = 0.0;
+  for (Eigen::Index i = 0; i < lambda.size(); ++i) {
+    const double q = lambda(i) / (1.0 + a * lambda(i));
+    info += 0.5 * q * q;
+  }
+  return info;
 }
 
 }  // namespace
@@ -66,34 +77,30 @@ SlowAmplitude best_slow_amplitude(const Eigen::VectorXd& w_in, const Eigen::Matr
   best.log_likelihood = restricted_log_likelihood(0.0, lambda, w2);
   const double mean = lambda.size() > 0 ? lambda.mean() : 0.0;
   if (!(mean > 0.0)) return best;
-  const int points = 97;  // 8 per decade
-  double best_log = std::numeric_limits<double>::quiet_NaN();
+  // A logarithmic grid over twelve decades around 1 / mean eigenvalue, 24 per decade: the
+  // likelihood's maximum (to compare shapes) and the posterior moments of a under Jeffreys'
+  // prior sqrt(I(a)) (proper at a = 0, scale-free above), integrated in log a.
+  const int points = 289;
+  std::vector<double> log_a(points), l(points);
   for (int k = 0; k < points; ++k) {
-    const double log_a = std::log(1.0 / mean) + std::log(10.0) * (-6.0 + 12.0 * k / (points - 1));
-    const double l = restricted_log_likelihood(std::exp(log_a), lambda, w2);
-    if (l > best.log_likelihood) {
-      best.log_likelihood = l;
-      best.amplitude = std::exp(log_a);
-      best_log = log_a;
-    }
+    log_a[k] = std::log(1.0 / mean) + std::log(10.0) * (-6.0 + 12.0 * k / (points - 1));
+    l[k] = restricted_log_likelihood(std::exp(log_a[k]), lambda, w2);
+    best.log_likelihood = std::max(best.log_likelihood, l[k]);
   }
-  if (!std::isfinite(best_log)) return best;
-  double lo = best_log - std::log(10.0) / 8.0, hi = best_log + std::log(10.0) / 8.0;
-  const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
-  for (int iteration = 0; iteration < 40; ++iteration) {
-    const double a = hi - phi * (hi - lo), b = lo + phi * (hi - lo);
-    if (restricted_log_likelihood(std::exp(a), lambda, w2) >
-        restricted_log_likelihood(std::exp(b), lambda, w2)) {
-      hi = b;
-    } else {
-      lo = a;
-    }
+  double mass = 0.0, first = 0.0, second = 0.0;
+  for (int k = 0; k < points; ++k) {
+    const double a = std::exp(log_a[k]);
+    const double weight = std::exp(l[k] - best.log_likelihood) *
+                          std::sqrt(amplitude_information(a, lambda)) * a;  // da = a d(log a)
+    mass += weight;
+    first += weight * a;
+    second += weight * a * a;
   }
-  const double l = restricted_log_likelihood(std::exp(0.5 * (lo + hi)), lambda, w2);
-  if (l > best.log_likelihood) {
-    best.log_likelihood = l;
-    best.amplitude = std::exp(0.5 * (lo + hi));
-  }
+  if (!(mass > 0.0) || !(first > 0.0)) return best;
+  best.amplitude = first / mass;
+  best.relative_variance =
+      std::max(0.0, second / mass - best.amplitude * best.amplitude) /
+      (best.amplitude * best.amplitude);
   return best;
 }
 
@@ -139,19 +146,22 @@ RunSpan run_span(const PositionTable& table) {
 std::string slow_part_note(const std::string& fitted_to, const NoiseModel& model) {
   std::ostringstream note;
   note << std::setprecision(3) << "; slow part fitted to " << fitted_to
-       << " (restricted maximum likelihood, the shape chosen among Gauss-Markov times, a random "
-          "walk and the rest's own; in the outputs' unit):";
+       << " (restricted likelihood: the shape of highest likelihood among Gauss-Markov times, a "
+          "random walk and the rest's own, its amplitude's posterior mean, the scale's relative "
+          "standard deviation in brackets; in the outputs' unit):";
   for (int s = 0; s < 3; ++s) {
     const AxisNoiseModel& axis = model.axes[s];
     note << " " << "uvw"[s] << " gm " << axis.gm_sigma << " over " << axis.gm_tau_s << " s, rw "
-         << axis.rw_density << " per sqrt(s);";
+         << axis.rw_density << " per sqrt(s) [" << std::sqrt(axis.slow_scale_rel_var) << "];";
   }
   return note.str();
 }
 
-AxisNoiseModel scaled_shape(const AxisNoiseModel& shape, double amplitude) {
+AxisNoiseModel scaled_shape(const AxisNoiseModel& shape, const SlowAmplitude& fitted) {
   AxisNoiseModel axis;
+  const double amplitude = fitted.amplitude;
   if (!(amplitude > 0.0)) return axis;
+  axis.slow_scale_rel_var = fitted.relative_variance;
   const double c = std::sqrt(amplitude);
   axis.gm_sigma = shape.gm_sigma * c;
   axis.gm_tau_s = axis.gm_sigma > 0.0 ? shape.gm_tau_s : 0.0;

@@ -517,8 +517,7 @@ NoiseModel slow_part_from_tumble(const PositionTable& table, const NoiseModel& r
       const int best_shape = choice.shape;
       const SlowAmplitude& best = choice.fit;
       const AxisNoiseModel next =
-          best_shape >= 0 ? scaled_shape(shapes[s][static_cast<std::size_t>(best_shape)],
-                                         best.amplitude)
+          best_shape >= 0 ? scaled_shape(shapes[s][static_cast<std::size_t>(best_shape)], best)
                           : AxisNoiseModel();
       if (best_shape != chosen[s] ||
           std::abs(next.gm_sigma - fitted[s].gm_sigma) > 1e-3 * std::abs(next.gm_sigma) ||
@@ -537,6 +536,7 @@ NoiseModel slow_part_from_tumble(const PositionTable& table, const NoiseModel& r
     axis.gm_sigma = fitted[s].gm_sigma;
     axis.gm_tau_s = fitted[s].gm_tau_s;
     axis.rw_density = fitted[s].rw_density;
+    axis.slow_scale_rel_var = fitted[s].slow_scale_rel_var;
   }
   model.source +=
       slow_part_note("the long rest's blocks and the tumble's rest means together", model);

@@ -256,11 +256,12 @@ TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesGaussMarkov) {
   // 60 runs of the issue's scenario. With the white weights the z-scores spread far beyond 1
   // (the issue saw 5 sigma); with the noise model (true, and as estimated from the 120 s rest)
   // the RMS z-score is 1 within the chi-square band of 60 runs (per parameter; pooled over the
-  // 9 parameters the bands below are conservative). The band for an estimated model is wider
-  // (0.75 .. 1.35): a 120 s rest gives the slow part to about +-40 %, and fitting it again to the
-  // run (slow_part_from_run, as calibrate() does) does not narrow it: measured when written
-  // 0.95 true, 1.24 rest's model, 1.23 fitted to the run (offsets 1.0, 1.43, 1.41): with an
-  // estimated slow part the uncertainties are about 20 % small, mostly on the offsets.
+  // 9 parameters the bands below are conservative). The rest's model alone is about 20 % short
+  // (a 120 s rest gives the slow part to about +-40 %): band 0.75 .. 1.35. As calibrate() fits
+  // (slow_part_from_run: the rest's blocks and the dwells, the amplitude's posterior mean, the
+  // covariance widened for the estimated scale) it is held to the band of the true model.
+  // Measured when written: 0.95 true, 1.24 rest's model, 1.10 fitted to the run (1.23 with the
+  // likelihood's maximum, no blocks and no widening).
   const int runs = 60;
   Coverage white, true_model, estimated, refined;
   for (int k = 0; k < runs; ++k) {
@@ -291,18 +292,19 @@ TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesGaussMarkov) {
   EXPECT_LT(true_model.rms(), hi);
   EXPECT_GT(estimated.rms(), 0.75);
   EXPECT_LT(estimated.rms(), 1.35);
-  EXPECT_GT(refined.rms(), 0.75);
-  EXPECT_LT(refined.rms(), 1.35);
+  EXPECT_GT(refined.rms(), lo);
+  EXPECT_LT(refined.rms(), hi);
 }
 
 TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesRandomWalk) {
   // A random-walk bias (1e-4 (m/s^2)/sqrt(s): 2 mm/s^2 after 400 s). Responsivities and angles,
   // with the true model and as calibrate() reports (the rest's model fitted again to the run),
-  // and the offsets apart. Measured when written: white 1.84, true model 1.02, fitted to the run
-  // 1.08; offsets true model 1.02, fitted to the run 2.27 (2.80 before a random walk not
-  // rejected was preferred, slow_part_fit.h): the offsets carry the walk's excursion over the
-  // run, and its density from the dwells' residuals is short on most seeds. Not covered; asserted:
-  // no worse than that.
+  // and the offsets apart, all held to the chi-square band. Measured when written: white 1.84,
+  // true model 1.02, fitted to the run 0.96; offsets true model 1.02, fitted to the run 0.91.
+  // The offsets carry the walk's excursion over the run, so they rest on the walk's density,
+  // which one run pins only to tens of percent: with the likelihood's maximum as the amplitude
+  // they were at 2.27 (a third of the axes found next to no walk), 1.98 with the covariance
+  // widened for the estimated scale, 1.26 with the posterior mean, 0.91 with the rest's blocks.
   const int runs = 60;
   Coverage white, true_model, refined, refined_offsets, true_offsets;
   for (int k = 0; k < runs; ++k) {
@@ -339,7 +341,8 @@ TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesRandomWalk) {
   EXPECT_LT(refined.rms(), hi);
   EXPECT_GT(true_offsets.rms(), lo);
   EXPECT_LT(true_offsets.rms(), hi);
-  EXPECT_LT(refined_offsets.rms(), 2.4);
+  EXPECT_GT(refined_offsets.rms(), lo);
+  EXPECT_LT(refined_offsets.rms(), hi);
 }
 
 // ---- the hand tumble under a slow bias -----------------------------------------------------------
@@ -415,12 +418,12 @@ TEST(CorrelatedNoise, TumbleSimulatorSlowBiasIsTheGimbalSimulatorsProcess) {
 // model is usually short of the run's slow variance.
 // The cure calibrate() applies, tumble.h slow_part_from_tumble: the slow part fitted again to the
 // rest's blocks and the other rests together, a random walk kept where the data do not reject it
-// (fourth figure; measured when written): Gauss-Markov intrinsics 1.10, offsets 0.84; random walk
-// intrinsics 1.05, offsets 1.32. Tried before that rule: the best shape by likelihood alone,
-// offsets 1.14 / 2.17; the rests alone without the rest's blocks, 1.74 / 3.35 (about 20 degrees
-// of freedom for three accelerometers). The walk's offsets stay above 1 because its density
-// comes from about ten rests per axis (+-45 % over seeds 7000..7009); asserted: within 1.45 and
-// far better than the rest's model.
+// with its amplitude's posterior mean (slow_part_fit.h best_slow_amplitude; fourth figure,
+// measured when written): Gauss-Markov intrinsics 1.07, offsets 0.81; random walk intrinsics
+// 1.00, offsets 0.91. Before, with the likelihood's maximum as the amplitude: random-walk offsets
+// 1.32 (the walk's density comes from about ten rests per axis, +-45 % over seeds 7000..7009,
+// and the maximum sits low on many); tried before the walk rule: the best shape by likelihood
+// alone, offsets 1.14 / 2.17; the rests alone without the rest's blocks, 1.74 / 3.35.
 struct TumbleCoverage {
   // white, true model, estimated from the rest, estimated and fitted to the run (as calibrate())
   Coverage intrinsics[4];
@@ -483,15 +486,14 @@ TEST(CorrelatedNoise, TumbleCoverageRandomWalk) {
     EXPECT_GT(c.intrinsics[m].rms(), lo) << m;
     EXPECT_LT(c.intrinsics[m].rms(), hi) << m;
   }
-  // The offsets: covered with the true model; with the rest's estimate only better than white;
-  // fitted to the run as calibrate() does, close (see above).
+  // The offsets: covered with the true model and fitted to the run as calibrate() does; with the
+  // rest's estimate only better than white.
   EXPECT_GT(c.offsets[1].rms(), lo);
   EXPECT_LT(c.offsets[1].rms(), hi);
   EXPECT_GT(c.offsets[0].rms(), hi);
   EXPECT_LT(c.offsets[2].rms(), c.offsets[0].rms());
   EXPECT_GT(c.offsets[3].rms(), lo);
-  EXPECT_LT(c.offsets[3].rms(), 1.45);
-  EXPECT_LT(c.offsets[3].rms(), 0.7 * c.offsets[2].rms());
+  EXPECT_LT(c.offsets[3].rms(), hi);
 }
 
 // GLS with a slow part too small to matter is the white fit: the residuals' covariance built from

@@ -173,11 +173,14 @@ CrossValidatedGap cross_validated_gap(const PositionTable& table, const FitOptio
 // restricted (REML) likelihood of the base fit's residuals (S, O and options.effects projected
 // out, so the fitted terms do not eat into the noise) under C = D^2 + a K, D the dwells' white
 // standard errors and K one of a set of shapes: a unit Gauss-Markov process at correlation times
-// from 0.5 s to 5 times the run, a unit random walk, and the rest's own slow part; the amplitude
-// a >= 0 and the shape of highest likelihood are kept (a = 0: the run shows no slow part on that
-// axis), or a random walk the data do not reject (slow_part_fit.h choose_slow_shape). The rest
-// decides that there is a slow part (white models come back unchanged) and offers its shape; the
-// run sets amplitude and shape. The source says what was chosen.
+// from 0.5 s to 5 times the run, a unit random walk, and the rest's own slow part. The long
+// rest enters as its blocks (NoiseModel::rest_blocks) when the model carries them. The shape of
+// highest likelihood is kept, or a random walk the data do not reject (slow_part_fit.h
+// choose_slow_shape), with the amplitude's posterior mean and relative variance
+// (best_slow_amplitude; the fit widens its covariance by the latter, noise.h
+// estimated_scale_covariance). The rest decides that there is a slow part (white models come
+// back unchanged) and offers its shape; the run sets amplitude and shape. The source says what
+// was chosen.
 NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& options);
 
 struct Gap {

@@ -110,6 +110,11 @@ struct AxisNoiseModel {
   double gm_sigma = 0.0;   // m/s^2
   double gm_tau_s = 0.0;   // s
   double rw_density = 0.0;  // (m/s^2)/sqrt(s)
+  // How well the slow part's scale is known: the relative variance of the factor that multiplies
+  // gm_sigma^2 and rw_density^2 together, as the fit that estimated it found it
+  // (slow_part_fit.h); 0 = taken as known (a true or assumed model). A fit widens its covariance
+  // by it (estimated_scale_covariance).
+  double slow_scale_rel_var = 0.0;
   bool slow() const { return gm_sigma > 0.0 || rw_density > 0.0; }
 };
 
@@ -220,6 +225,25 @@ struct DwellCorrelation {
 std::shared_ptr<const DwellCorrelation> dwell_correlation(const PositionTable& table,
                                                           const std::vector<Eigen::Vector3d>& se,
                                                           const NoiseModel& model);
+
+// The covariance of a generalized least-squares estimate whose noise model's slow parts were
+// estimated from the same data (AxisNoiseModel::slow_scale_rel_var > 0): Kenward and Roger's
+// adjusted covariance (Biometrics 53, 1997) for one variance parameter per accelerometer, the
+// factor theta_s that scales its slow part (theta_s = 1 at the estimate, Var = slow_scale_rel_var):
+//   Phi_A = Phi + 2 Phi [sum_s Var(theta_s) (Q_s - P_s Phi P_s)] Phi,
+// P_s = J_s^T H_s J_s, Q_s = J_s^T H_s^2 J_s, H_s = L_s^-1 (R_s - I) L_s^-T (the slow part in
+// the whitened frame), J_s the rows of accelerometer s of the whitened Jacobian, Phi its
+// unscaled (J^T J)^-1. Why: the plug-in Phi treats the estimated slow part as known; a 2 s dwell
+// run pins a random walk's density only to tens of percent, and with Phi alone the offsets'
+// RMS z-score under a random walk was 1.7 (test/core/correlated_noise_test.cpp). The widening is
+// large where the slow part is both poorly known and what the parameter's uncertainty rests on
+// (the offsets under a walk), small elsewhere. `whitened_jacobian`: 3 rows per dwell (u, v, w
+// interleaved, as DwellCorrelation::whiten_columns leaves them), one column per parameter.
+Eigen::MatrixXd estimated_scale_covariance(const NoiseModel& model, const DwellCorrelation& corr,
+                                           const Eigen::MatrixXd& whitened_jacobian,
+                                           const Eigen::MatrixXd& phi);
+// True when some axis's slow part carries an estimated scale (slow_scale_rel_var > 0).
+bool has_estimated_scale(const NoiseModel& model);
 
 // The flat floor of a bias instability B: sqrt(2 ln 2 / pi) B.
 constexpr double kBiasInstabilityFloor = 0.66428;

@@ -2,8 +2,8 @@
 // (DESIGN.md section 12). One definition for the gimbal fit (discrepancy.h slow_part_from_run)
 // and the hand tumble (tumble.h slow_part_from_tumble): both hand it the part of their
 // normalized residuals outside their model's Jacobian (w = U^T z, U an orthonormal basis of the
-// complement) and the slow kernels projected the same way (U^T K U), and keep the shape and
-// amplitude of highest likelihood.
+// complement) and the slow kernels projected the same way (U^T K U), and keep the shape of
+// highest likelihood with its amplitude's posterior mean (best_slow_amplitude).
 #pragma once
 
 #include <Eigen/Core>
@@ -26,16 +26,25 @@ std::vector<AxisNoiseModel> slow_part_shapes(double span_s, const AxisNoiseModel
 Eigen::MatrixXd residual_complement(const Eigen::MatrixXd& X);
 
 struct SlowAmplitude {
+  // The amplitude's posterior mean under Jeffreys' prior (below); 0 when the kernel is null.
   double amplitude = 0.0;
-  // Restricted log-likelihood up to a constant that is the same for every kernel against one
-  // base: compare values from one base only.
+  // The restricted log-likelihood's maximum over a >= 0, up to a constant that is the same for
+  // every kernel against one base: compare values from one base only.
   double log_likelihood = 0.0;
+  // Relative posterior variance of the amplitude (var(a) / mean(a)^2): how well the run pinned
+  // the slow part's scale (AxisNoiseModel::slow_scale_rel_var).
+  double relative_variance = 0.0;
 };
 
-// The amplitude a >= 0 that maximizes the restricted likelihood of w ~ N(0, B + a M): w and M
-// already projected (w = U^T z, M = U^T K U), B = base_L base_L^T (an empty base_L: B = I).
-// a = 0, a logarithmic grid over twelve decades around 1 / mean eigenvalue, then a golden-section
-// refinement around the grid's best point.
+// The amplitude a >= 0 of w ~ N(0, B + a M): w and M already projected (w = U^T z,
+// M = U^T K U), B = base_L base_L^T (an empty base_L: B = I). Restricted likelihood on a
+// logarithmic grid over twelve decades around 1 / mean eigenvalue; the amplitude reported is the
+// posterior mean under Jeffreys' prior sqrt(I(a)), not the maximum. Why: one run often leaves a
+// slow part barely seen (a random walk over a 6 min gimbal run: relative variance 0.5 to 3), and
+// the maximum then sits at or near a = 0 on a third of the axes, so the uncertainties that rest
+// on it (the offsets under a walk) came out several times too small (RMS z 2.3, seeds 900..959);
+// the posterior mean keeps what the data do not exclude. Measured: offsets RMS z 0.91, the
+// intrinsics' 0.96 (test/core/correlated_noise_test.cpp).
 SlowAmplitude best_slow_amplitude(const Eigen::VectorXd& w, const Eigen::MatrixXd& M,
                                   const Eigen::MatrixXd& base_L = Eigen::MatrixXd());
 
@@ -72,8 +81,9 @@ RunSpan run_span(const PositionTable& table);
 // (restricted maximum likelihood, ...): u gm .. over .. s, rw .. per sqrt(s); v ...".
 std::string slow_part_note(const std::string& fitted_to, const NoiseModel& model);
 
-// A shape scaled by an amplitude (variance factor): the axis model it stands for, white_std 0.
-AxisNoiseModel scaled_shape(const AxisNoiseModel& shape, double amplitude);
+// A shape scaled by a fitted amplitude (variance factor): the axis model it stands for, white_std
+// 0, with the amplitude's relative variance as its slow_scale_rel_var.
+AxisNoiseModel scaled_shape(const AxisNoiseModel& shape, const SlowAmplitude& fitted);
 
 }  // namespace core
 }  // namespace accel_intrinsics
