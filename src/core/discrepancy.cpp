@@ -737,7 +737,11 @@ NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& opti
     axis.rw_density = slow.rw_density;
     axis.slow_scale_rel_var = slow.slow_scale_rel_var;
   }
-  model.source += slow_part_note("the run's dwell means", model);
+  model.source += slow_part_note(
+      rest_row ? "the run's dwell means and the long rest's " + std::to_string(blocks.size()) +
+                     " blocks"
+               : std::string("the run's dwell means"),
+      model);
   return model;
 }
 

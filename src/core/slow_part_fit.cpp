@@ -151,8 +151,8 @@ std::string slow_part_note(const std::string& fitted_to, const NoiseModel& model
           "standard deviation in brackets; in the outputs' unit):";
   for (int s = 0; s < 3; ++s) {
     const AxisNoiseModel& axis = model.axes[s];
-    note << " " << "uvw"[s] << " gm " << axis.gm_sigma << " over " << axis.gm_tau_s << " s, rw "
-         << axis.rw_density << " per sqrt(s) [" << std::sqrt(axis.slow_scale_rel_var) << "];";
+    note << (s > 0 ? ";" : "") << " " << "uvw"[s] << " gm " << axis.gm_sigma << " over " << axis.gm_tau_s << " s, rw "
+         << axis.rw_density << " per sqrt(s) [" << std::sqrt(axis.slow_scale_rel_var) << "]";
   }
   return note.str();
 }

@@ -100,7 +100,8 @@ nlohmann::json noise_model_json(const core::NoiseModel& m) {
     axes[core::accelerometer_name(s)] = {{"white_std", a.white_std},
                                          {"gm_sigma", a.gm_sigma},
                                          {"gm_tau_s", a.gm_tau_s},
-                                         {"rw_density", a.rw_density}};
+                                         {"rw_density", a.rw_density},
+                                         {"slow_scale_rel_var", a.slow_scale_rel_var}};
   }
   return {{"kind", m.kind()},
           {"source", m.source},

@@ -11,6 +11,7 @@
 #include <optional>
 #include <stdexcept>
 #include <iostream>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -323,6 +324,8 @@ TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesRandomWalk) {
     // As calibrate() reports: the rest's model fitted again to the run.
     fo.noise_model = estimated_model(table, rest, so.protocol.initial_rest_s);
     fo.noise_model = slow_part_from_run(table, fo);
+    EXPECT_NE(fo.noise_model.source.find("the long rest's 30 blocks"), std::string::npos)
+        << fo.noise_model.source;
     const FitResult fr = fit(table, fo);
     add_z(fr, so, &refined, false);
     for (int s = 0; s < 3; ++s) refined_offsets.add((fr.O(s) - so.truth.O(s)) / fr.O_std(s));
@@ -343,6 +346,8 @@ TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesRandomWalk) {
   EXPECT_LT(true_offsets.rms(), hi);
   EXPECT_GT(refined_offsets.rms(), lo);
   EXPECT_LT(refined_offsets.rms(), hi);
+  // These seeds' figure without the rest's blocks (1.26) is inside the band too: held apart.
+  EXPECT_LT(refined_offsets.rms(), 1.15);
 }
 
 // ---- the hand tumble under a slow bias -----------------------------------------------------------
@@ -494,6 +499,79 @@ TEST(CorrelatedNoise, TumbleCoverageRandomWalk) {
   EXPECT_LT(c.offsets[2].rms(), c.offsets[0].rms());
   EXPECT_GT(c.offsets[3].rms(), lo);
   EXPECT_LT(c.offsets[3].rms(), hi);
+}
+
+// The covariance widened for an estimated slow scale (noise.h estimated_scale_covariance) against
+// what it stands for: Kackar and Harville's term Phi (Q - P Phi P) Phi is E[d d^T], d the
+// derivative of the GLS estimate by the slow part's scale at fixed data. Here d comes from the
+// fit itself, by central differences of the scale, over dwell means drawn in the test from the
+// model's covariance (the Cholesky factor of each accelerometer's C = D R D), and its mean
+// outer product is held to the widening the fit reports with a relative variance of 1 per axis
+// ((Phi_A - Phi) / 2, noise-free means so that no chi-square scale enters).
+TEST(CorrelatedNoise, WideningForAnEstimatedScaleIsTheEstimatesSensitivity) {
+  SimulationOptions so;
+  so.protocol.steps_per_phase = 12;
+  so.protocol.dwell_s = 2.0;
+  so.protocol.initial_rest_s = 30.0;
+  so.noise_density = 0.0;
+  PositionTable exact = simulate_position_table(so);
+  for (DwellRecord& row : exact.rows) row.std = Eigen::Vector3d(0.02, 0.03, 0.025);
+  NoiseModel model;
+  model.axes[0] = {0.02, 0.0, 0.0, 2e-4};      // a walk on u
+  model.axes[1] = {0.03, 0.002, 20.0, 0.0};    // Gauss-Markov on v
+  model.axes[2] = {0.025, 0.001, 5.0, 1e-4};   // both on w
+  FitOptions fo;
+  fo.noise_model = model;
+  const FitResult plain = fit(exact, fo);
+  for (AxisNoiseModel& a : fo.noise_model.axes) a.slow_scale_rel_var = 1.0;
+  const FitResult widened = fit(exact, fo);
+  ASSERT_EQ(plain.reduced_chi2, widened.reduced_chi2);
+  const Eigen::Matrix<double, 12, 12> expected = 0.5 * (widened.covariance - plain.covariance);
+  EXPECT_GT(expected.diagonal().minCoeff(), 0.0);
+
+  const std::vector<Eigen::Vector3d> se = dwell_standard_errors(exact);
+  const std::shared_ptr<const DwellCorrelation> corr = dwell_correlation(exact, se, model);
+  ASSERT_TRUE(corr != nullptr);
+  auto scaled = [&](double factor) {
+    FitOptions f;
+    f.noise_model = model;
+    for (AxisNoiseModel& a : f.noise_model.axes) {
+      a.gm_sigma *= std::sqrt(factor);
+      a.rw_density *= std::sqrt(factor);
+    }
+    return f;
+  };
+  const double eps = 1e-3;
+  const FitOptions up = scaled(1.0 + eps), down = scaled(1.0 - eps);
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const int draws = 600;
+  const Eigen::Index n = static_cast<Eigen::Index>(exact.rows.size());
+  Eigen::Matrix<double, 12, 12> sum = Eigen::Matrix<double, 12, 12>::Zero();
+  for (int k = 0; k < draws; ++k) {
+    PositionTable noisy = exact;
+    for (int s = 0; s < 3; ++s) {
+      Eigen::VectorXd xi(n);
+      for (Eigen::Index i = 0; i < n; ++i) xi(i) = normal(rng);
+      const Eigen::VectorXd e = corr->L[s] * xi;
+      for (Eigen::Index i = 0; i < n; ++i)
+        noisy.rows[static_cast<std::size_t>(i)].mean(s) += se[static_cast<std::size_t>(i)](s) * e(i);
+    }
+    const FitResult a = fit(noisy, up), b = fit(noisy, down);
+    Eigen::Matrix<double, 12, 1> d;
+    for (int j = 0; j < 9; ++j) d(j) = (a.S(j / 3, j % 3) - b.S(j / 3, j % 3)) / (2.0 * eps);
+    for (int s = 0; s < 3; ++s) d(9 + s) = (a.O(s) - b.O(s)) / (2.0 * eps);
+    sum += d * d.transpose();
+  }
+  const Eigen::Matrix<double, 12, 12> measured = sum / draws;
+  // Each diagonal entry is a mean of 600 squares of a Gaussian: +-6 % (1 sigma); 25 % allowed.
+  for (int j = 0; j < 12; ++j) {
+    SCOPED_TRACE(j);
+    EXPECT_NEAR(measured(j, j) / expected(j, j), 1.0, 0.25);
+  }
+  // That the test measures something: the walking u offset's widening is a visible part of its
+  // variance (7 % here at a relative variance of 1).
+  EXPECT_GT(expected(9, 9), 0.03 * plain.covariance(9, 9));
 }
 
 // GLS with a slow part too small to matter is the white fit: the residuals' covariance built from

@@ -10,7 +10,7 @@
 //     "joint+quadratic_nonlinearity[u]"), vectors_std, offset_std, offset_per_phase_std,
 //     cross_sensitivity_std, chi2, dof, fitted_effects [{name, target, value, std}] (the terms
 //     fitted in the certificate model), noise_model ("white", or {kind, source, rate_hz, rest
-//     {t_start, t_end, samples}, axes {u,v,w: {white_std, gm_sigma, gm_tau_s, rw_density}}}: the
+//     {t_start, t_end, samples}, axes {u,v,w: {white_std, gm_sigma, gm_tau_s, rw_density, slow_scale_rel_var}}}: the
 //     noise of the dwell means the fit used, DESIGN.md section 12)
 //   from the dwells (core/noise.h), when they tell: noise_density {u,v,w} ((m/s^2)/sqrt(Hz), the
 //     continuous-time density sample_std / sqrt(rate)), noise_density_std, sample_rate_hz
