@@ -19,7 +19,7 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
   // model (discrepancy.h slow_part_from_run), a tumble through the ellipsoid (tumble.h
   // slow_part_from_tumble).
   FitOptions fit_options = options.fit;
-  if (!fit_options.noise_model.white()) {
+  if (fit_options.noise_model.slow_part_to_fit()) {
     const std::size_t unknown = rows_with_unknown_orientation(table);
     if (unknown == 0) {
       fit_options.noise_model = slow_part_from_run(table, fit_options);

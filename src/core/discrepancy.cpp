@@ -636,7 +636,7 @@ CrossValidatedGap cross_validated_gap(const PositionTable& table, const FitOptio
 NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& options) {
   NoiseModel model = options.noise_model;
   const std::size_t rows = table.rows.size();
-  if (model.white() || rows < 8) return model;
+  if (!model.slow_part_to_fit() || rows < 8) return model;
   // The residuals and the Jacobian of the base model, white-weighted: the restricted likelihood
   // depends on the data only through their part outside the Jacobian's column space, which is
   // the same for every fit in it.

@@ -418,7 +418,7 @@ NoiseModel slow_part_from_tumble(const PositionTable& table, const NoiseModel& r
   NoiseModel model = rest_model;
   const std::size_t n = table.rows.size();
   const std::vector<DwellRecord>& blocks = rest_model.rest_blocks;
-  if (model.white() || n < kParams + 4 || blocks.size() < 4) return model;
+  if (!model.slow_part_to_fit() || n < kParams + 4 || blocks.size() < 4) return model;
   const TumbleProblem problem = make_problem(table, local_gravity, NoiseModel());
   if (problem.unit_weights) return model;
   const Parameters p = solve(problem).p;

@@ -178,9 +178,10 @@ CrossValidatedGap cross_validated_gap(const PositionTable& table, const FitOptio
 // highest likelihood is kept, or a random walk the data do not reject (slow_part_fit.h
 // choose_slow_shape), with the amplitude's posterior mean and relative variance
 // (best_slow_amplitude; the fit widens its covariance by the latter, noise.h
-// estimated_scale_covariance). The rest decides that there is a slow part (white models come
-// back unchanged) and offers its shape; the run sets amplitude and shape. The source says what
-// was chosen.
+// estimated_scale_covariance). A model with no slow part comes back unchanged unless it came from
+// a recorded rest (NoiseModel::slow_part_to_fit): a rest that looks white does not rule out a
+// slow part the run shows. The rest offers its shape; the run sets amplitude and shape. The
+// source says what was chosen.
 NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& options);
 
 struct Gap {

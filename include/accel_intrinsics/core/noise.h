@@ -136,6 +136,11 @@ struct NoiseModel {
   // True when no axis has a slow part: every fit then weights by std / sqrt(n) exactly as
   // before.
   bool white() const;
+  // True when the slow part is to be fitted to the whole run (slow_part_from_run,
+  // slow_part_from_tumble): it has one, or it came from a recorded rest (rest_blocks), whose
+  // white look does not rule out a slow part the run shows (a 120 s rest hides a walk whose
+  // Allan deviation crosses the white noise's near 30 s).
+  bool slow_part_to_fit() const { return !white() || !rest_blocks.empty(); }
   // "white", "gauss_markov", "random_walk" or "gauss_markov+random_walk".
   std::string kind() const;
   // Covariance of the means of axis `axis` over [a0, a1] and [b0, b1] from the slow parts

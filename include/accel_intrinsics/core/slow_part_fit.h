@@ -44,7 +44,11 @@ struct SlowAmplitude {
 // the maximum then sits at or near a = 0 on a third of the axes, so the uncertainties that rest
 // on it (the offsets under a walk) came out several times too small (RMS z 2.3, seeds 900..959);
 // the posterior mean keeps what the data do not exclude. Measured: offsets RMS z 0.91, the
-// intrinsics' 0.96 (test/core/correlated_noise_test.cpp).
+// intrinsics' 0.96 (test/core/correlated_noise_test.cpp). The price, on white data: the
+// offsets' uncertainties about 4 times the white fit's (the walk the run cannot exclude), the
+// responsivities' 1.1 times. Tried, to spare white data: no slow part on an axis unless the run
+// shows one (log-likelihood above a = 0 by 2) where the rest's model had none: white data 1.1
+// times, but random-walk offsets 1.72 (gimbal) and 1.40 (tumble), overconfident again; not kept.
 SlowAmplitude best_slow_amplitude(const Eigen::VectorXd& w, const Eigen::MatrixXd& M,
                                   const Eigen::MatrixXd& base_L = Eigen::MatrixXd());
 
