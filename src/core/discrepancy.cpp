@@ -654,8 +654,9 @@ NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& opti
   Eigen::MatrixXd J(3 * static_cast<Eigen::Index>(rows), p);
   for (int j = 0; j < p; ++j)
     J.col(j) = weighted_derivative(geoms, se, device, device.effects, j, options.local_gravity);
-  const double t_first = run_span(table).t_first;
-  const double span = std::max(run_span(table).length(), 1.0);
+  const RunSpan run = run_span(table);
+  const double t_first = run.t_first;
+  const double span = std::max(run.length(), 1.0);
   // The observations of the likelihood: every dwell mean, but the long rest, when the model
   // carries its blocks, stands as its blocks (each against the fit's prediction for the rest's
   // position): they show how the slow part grows over the rest's seconds to minutes, which the

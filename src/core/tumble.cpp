@@ -471,8 +471,9 @@ NoiseModel slow_part_from_tumble(const PositionTable& table, const NoiseModel& r
   const Eigen::MatrixXd U = residual_complement(X);
   if (U.cols() < 4) return model;
   const Eigen::VectorXd w = U.transpose() * z;
-  const double t_first = run_span(table).t_first;
-  const double span = std::max(run_span(table).length(), 1.0);
+  const RunSpan run = run_span(table);
+  const double t_first = run.t_first;
+  const double span = std::max(run.length(), 1.0);
   // Each accelerometer's candidate kernels, projected: U^T K U with K(i, j) = load_i(s) load_j(s)
   // Cov_unit(i, j) over the observations' intervals.
   std::vector<AxisNoiseModel> shapes[3];

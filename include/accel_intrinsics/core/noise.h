@@ -239,8 +239,9 @@ std::shared_ptr<const DwellCorrelation> dwell_correlation(const PositionTable& t
 // P_s = J_s^T H_s J_s, Q_s = J_s^T H_s^2 J_s, H_s = L_s^-1 (R_s - I) L_s^-T (the slow part in
 // the whitened frame), J_s the rows of accelerometer s of the whitened Jacobian, Phi its
 // unscaled (J^T J)^-1. Why: the plug-in Phi treats the estimated slow part as known; a 2 s dwell
-// run pins a random walk's density only to tens of percent, and with Phi alone the offsets'
-// RMS z-score under a random walk was 1.7 (test/core/correlated_noise_test.cpp). The widening is
+// run pins a random walk's density only to tens of percent (measured under a random walk, with
+// the likelihood's maximum as the amplitude: offsets' RMS z 2.27 with Phi, 1.98 widened;
+// test/core/correlated_noise_test.cpp). The widening is
 // large where the slow part is both poorly known and what the parameter's uncertainty rests on
 // (the offsets under a walk), small elsewhere. `whitened_jacobian`: 3 rows per dwell (u, v, w
 // interleaved, as DwellCorrelation::whiten_columns leaves them), one column per parameter.
