@@ -25,8 +25,8 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/discrepancy.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/analysis/discrepancy.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/analysis_report.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/residuals_csv.h"
@@ -61,7 +61,7 @@ struct Theory {
 
 Theory theory_for(const SimulationOptions& base, const Effect& e) {
   // Independent of analyze() (test/support/detection_theory.h, shared with
-  // test/core/detection_theory_test.cpp): the Fisher information of the effect term with S and O
+  // test/core/analysis/detection_theory_test.cpp): the Fisher information of the effect term with S and O
   // projected out and the simulator's known noise, the family-wise max-T critical value of the
   // analysis' candidate family from the theory's own Monte Carlo draws at the analysis' alpha.
   namespace dt = accel_intrinsics::detection_theory;

@@ -19,10 +19,10 @@
 #include <cstdlib>
 #include <string>
 
-#include "accel_intrinsics/core/fit.h"
-#include "accel_intrinsics/core/intrinsics.h"
-#include "accel_intrinsics/core/protocol.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/model/intrinsics.h"
+#include "accel_intrinsics/core/model/protocol.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace core = accel_intrinsics::core;
 

@@ -1,4 +1,4 @@
-// Fit time against the number of positions per phase N (DESIGN.md / issue 2 "Performance").
+// Fit time against the number of positions per phase N (docs/design.md / issue 2 "Performance").
 //   BM_FitJoint         closed-form weighted least squares (normal equations, O(N))
 //   BM_FitEq4           the seed's 9 three-parameter fits and their combination (O(N))
 //   BM_FitJointEffect   joint + quadratic_nonlinearity[u] through Ceres (O(N) per iteration)
@@ -10,8 +10,8 @@
 #include <cstdint>
 #include <map>
 
-#include "accel_intrinsics/core/fit.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace {
 

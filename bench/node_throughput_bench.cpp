@@ -9,7 +9,7 @@
 
 #include <vector>
 
-#include "accel_intrinsics/core/dwell_assembler.h"
+#include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/ros/conversions.h"
 
 namespace ai = accel_intrinsics;

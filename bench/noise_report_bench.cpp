@@ -10,7 +10,7 @@
 #include <random>
 #include <vector>
 
-#include "accel_intrinsics/core/noise.h"
+#include "accel_intrinsics/core/noise/noise.h"
 
 namespace core = accel_intrinsics::core;
 

@@ -34,7 +34,7 @@
 #include <vector>
 
 #include "accel_intrinsics/GimbalCommand.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/ros/bag_input.h"
 #include "accel_intrinsics/ros/conversions.h"
 

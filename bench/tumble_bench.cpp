@@ -8,11 +8,11 @@
 
 #include <string>
 
-#include "accel_intrinsics/core/fit.h"
-#include "accel_intrinsics/core/rest_detection.h"
-#include "accel_intrinsics/core/samples_file.h"
-#include "accel_intrinsics/core/tumble.h"
-#include "accel_intrinsics/core/tumble_simulator.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/dwells/rest_detection.h"
+#include "accel_intrinsics/core/dwells/samples_file.h"
+#include "accel_intrinsics/core/fit/tumble.h"
+#include "accel_intrinsics/core/simulation/tumble_simulator.h"
 
 namespace {
 

@@ -1,4 +1,4 @@
-// libFuzzer target for the position-table CSV reader (DESIGN.md section 2): arbitrary bytes must
+// libFuzzer target for the position-table CSV reader (docs/design.md section 2): arbitrary bytes must
 // either be rejected with PositionTableError or parse into a table that survives a write/read
 // round trip unchanged. Built and run by tools/fuzz.sh.
 #include <cmath>
@@ -7,7 +7,7 @@
 #include <sstream>
 #include <string>
 
-#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 
 namespace core = accel_intrinsics::core;
 

@@ -1,4 +1,4 @@
-"""The lab archive of calibration results and the device history (DESIGN.md section 13).
+"""The lab archive of calibration results and the device history (docs/design.md section 13).
 
 One module behind scripts/archive and scripts/history (and the tests): SQLAlchemy Core (Debian's
 python3-sqlalchemy 1.4) for one implementation over SQLite and PostgreSQL, Alembic migrations
@@ -26,7 +26,7 @@ from sqlalchemy.engine import make_url
 
 ACCEL = ("u", "v", "w")
 ANGLES = ("uv", "vw", "wu")
-# The nine intrinsic parameters, named as in compare_results (DESIGN.md section 9), with the
+# The nine intrinsic parameters, named as in compare_results (docs/design.md section 9), with the
 # result keys of the value, its standard uncertainty and its expanded uncertainty.
 PARAMETERS = tuple(
     [("responsivity_" + a, "responsivity", "responsivity_std", "responsivity", a) for a in ACCEL] +

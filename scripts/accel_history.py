@@ -1,4 +1,4 @@
-"""The history of a device and the control chart of a check standard (DESIGN.md section 13):
+"""The history of a device and the control chart of a check standard (docs/design.md section 13):
 pure functions of archive records (accel_archive.fetch_records), no database, so the tests build
 records by hand.
 

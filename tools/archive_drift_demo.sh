@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The lab archive on the simulated stand (DESIGN.md section 13, issue 25): a simulated device
+# The lab archive on the simulated stand (docs/design.md section 13, issue 25): a simulated device
 # that drifts (config/simulated_device.yaml device/aging) is calibrated RUNS times, AGE_STEP_DAYS
 # apart, each run by `supervise --archive URL --time DATE`; then `history` must find the drift
 # of |u| (significant, rate within 3 of its standard uncertainties of the simulated one) and give

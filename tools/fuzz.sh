@@ -2,7 +2,7 @@
 # Builds the libFuzzer targets in fuzz/ with clang (AddressSanitizer + UBSan) and runs each for
 # FUZZ_SECONDS (default 60). A crashing input is written to fuzz/crashes/; commit it (minimized:
 # `<binary> -minimize_crash=1 -runs=10000 <input>`) under fuzz/corpus/<target>/ so the regression
-# tests replay it (test/core/fuzz_regression_test.cpp, test/ros_unit/bag_fuzz_regression_test.cpp).
+# tests replay it (test/core/dwells/fuzz_regression_test.cpp, test/ros_unit/bag_fuzz_regression_test.cpp).
 #
 # Targets (FUZZ_TARGETS, default "position_table bag_input"):
 #   position_table  the position-table CSV reader (core sources only)
@@ -51,9 +51,9 @@ run_target() {
 }
 
 if [[ " $targets " == *" position_table "* ]]; then
-  core_sources=("$REPO_DIR/src/core/position_table.cpp" "$REPO_DIR/src/core/protocol.cpp"
-                "$REPO_DIR/src/core/effects.cpp" "$REPO_DIR/src/core/model.cpp"
-                "$REPO_DIR/src/core/constants.cpp")
+  core_sources=("$REPO_DIR/src/core/dwells/position_table.cpp" "$REPO_DIR/src/core/model/protocol.cpp"
+                "$REPO_DIR/src/core/model/effects.cpp" "$REPO_DIR/src/core/model/model.cpp"
+                "$REPO_DIR/src/core/model/constants.cpp")
   echo "[fuzz] building position_table_fuzz"
   clang++ "${flags[@]}" "$REPO_DIR/fuzz/position_table_fuzz.cpp" "${core_sources[@]}" -o "$out/position_table_fuzz" \
     || { echo "[fuzz] position_table_fuzz did not build"; exit 1; }
@@ -84,7 +84,7 @@ if [[ " $targets " == *" bag_input "* ]]; then
                "$REPO_DIR/src/ros/bag_topics.cpp" "$REPO_DIR/src/ros/conversions.cpp"
                "$REPO_DIR/fuzz/bag_input_fuzz.cpp")
   # The whole core (conversions.cpp reaches the calibration run's status names).
-  for core in "$REPO_DIR"/src/core/*.cpp; do bag_sources+=("$core"); done
+  for core in "$REPO_DIR"/src/core/*/*.cpp; do bag_sources+=("$core"); done
   obj_dir="$out/bag_input_obj"
   mkdir -p "$obj_dir"
   echo "[fuzz] building bag_input_fuzz (${#bag_sources[@]} sources, -j${ACCEL_JOBS:-$(nproc)})"

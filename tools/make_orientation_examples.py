@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes the known-orientation examples of docs/known_orientations.md: a 6-position flip test
 and a 24-position tumble test of one simulated device, as position tables with f_x,f_y,f_z
-(DESIGN.md section 6), outputs in raw counts. Independent of the C++ simulator: numpy draws the
+(docs/design.md section 6), outputs in raw counts. Independent of the C++ simulator: numpy draws the
 samples of each dwell from R = K (S g f + O) + noise, K counts per m/s^2.
 
     /usr/bin/python3 tools/make_orientation_examples.py docs/examples

@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace accel_intrinsics {
 

@@ -1,4 +1,4 @@
-// Simulated gimbal backend and the tf chain that realizes DESIGN.md eq. (4).
+// Simulated gimbal backend and the tf chain that realizes docs/design.md eq. (4).
 #include "accel_intrinsics/drivers/gimbal_driver.h"
 
 #include <algorithm>
@@ -7,9 +7,9 @@
 #include <stdexcept>
 #include <utility>
 
-#include "accel_intrinsics/core/constants.h"
-#include "accel_intrinsics/core/model.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/model/model.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace accel_intrinsics {
 

@@ -7,7 +7,7 @@
 #include <sstream>
 #include <thread>
 
-#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/core/model/constants.h"
 
 namespace accel_intrinsics {
 

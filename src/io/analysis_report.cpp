@@ -7,8 +7,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "accel_intrinsics/core/effects.h"
-#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/model/effects.h"
+#include "accel_intrinsics/core/model/protocol.h"
 #include "json_documents.h"
 
 namespace accel_intrinsics {
@@ -37,7 +37,7 @@ nlohmann::json gap_summary_json(const GapSummary& g) {
 
 nlohmann::json gap_json(const Gap& gap) {
   nlohmann::json j = gap_summary_json(gap.summary);
-  // Out of sample (DESIGN.md section 12): null when not computed.
+  // Out of sample (docs/design.md section 12): null when not computed.
   j["cv_chi2_per_point"] = std::isfinite(gap.cv.cv_chi2_per_point)
                                ? nlohmann::json(gap.cv.cv_chi2_per_point)
                                : nlohmann::json(nullptr);

@@ -6,7 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "json_documents.h"
 

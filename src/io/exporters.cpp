@@ -8,8 +8,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "accel_intrinsics/core/calibration_forms.h"
-#include "accel_intrinsics/core/quality.h"
+#include "accel_intrinsics/core/model/calibration_forms.h"
+#include "accel_intrinsics/core/fit/quality.h"
 #include "accel_intrinsics/io/atomic_file.h"
 
 namespace accel_intrinsics {

@@ -3,9 +3,9 @@
 #include <iomanip>
 #include <ostream>
 
-#include "accel_intrinsics/core/discrepancy.h"
-#include "accel_intrinsics/core/model.h"
-#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/analysis/discrepancy.h"
+#include "accel_intrinsics/core/model/model.h"
+#include "accel_intrinsics/core/model/protocol.h"
 #include "accel_intrinsics/io/atomic_file.h"
 
 namespace accel_intrinsics {

@@ -7,8 +7,8 @@
 #include <cstdlib>
 #include <limits>
 
-#include "accel_intrinsics/core/constants.h"
-#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/model/protocol.h"
 #include "accel_intrinsics/io/analysis_report.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "json_documents.h"
@@ -155,7 +155,7 @@ void emit_yaml(YAML::Emitter& y, const nlohmann::json& j) {
 
 constexpr char kYamlHeader[] =
     "# accel_intrinsics calibration result: the keys and meanings of offline_fit's JSON "
-    "(include/accel_intrinsics/io/result_document.h, DESIGN.md section 2)\n";
+    "(include/accel_intrinsics/io/result_document.h, docs/design.md section 2)\n";
 
 // ---- reading ------------------------------------------------------------------------------------
 
@@ -202,7 +202,7 @@ class Reader {
 const char* const kAccelerometers[3] = {"u", "v", "w"};
 const char* const kAngles[3] = {"uv", "vw", "wu"};
 
-// A hand tumble's keys (DESIGN.md section 11): the frame of S, the rests and rejected spans, the
+// A hand tumble's keys (docs/design.md section 11): the frame of S, the rests and rejected spans, the
 // detector's levels, the coverage and the pose to try next.
 void add_tumble_keys(const core::CalibrationReport& report, const ResultContext& context,
                      nlohmann::json* j) {
@@ -244,7 +244,7 @@ void add_tumble_keys(const core::CalibrationReport& report, const ResultContext&
                         {"closest_deg", closest}};
   }
   if (report.tumble_analysis) {
-    // The contract's analysis keys (DESIGN.md section 2) for a tumble's screen.
+    // The contract's analysis keys (docs/design.md section 2) for a tumble's screen.
     const core::TumbleAnalysis& a = *report.tumble_analysis;
     nlohmann::json effects = nlohmann::json::array();
     for (std::size_t i = 0; i < a.named.size(); ++i) {

@@ -5,8 +5,8 @@
 #include <ostream>
 #include <string>
 
-#include "accel_intrinsics/core/constants.h"
-#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/model/protocol.h"
 #include "accel_intrinsics/io/analysis_report.h"
 
 namespace accel_intrinsics {
@@ -87,7 +87,7 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
   out << "\n  reduced chi2:  " << std::setprecision(6) << r.reduced_chi2 << " (chi2 " << r.chi2
       << ", dof " << r.dof << ")\n";
   out << "  residual rms:  " << std::setprecision(6) << r.residual_rms << " " << output_unit << "\n";
-  // The noise the weights assumed (DESIGN.md section 12): white, or the model of the long rest.
+  // The noise the weights assumed (docs/design.md section 12): white, or the model of the long rest.
   out << "  noise model:   " << r.noise_model.kind();
   if (!r.noise_model.white()) {
     out << std::setprecision(3) << " (" << r.noise_model.source

@@ -12,7 +12,7 @@ int main(int argc, char** argv) {
   ros::NodeHandle nh, pnh("~");
   try {
     // ~mode: gimbal (default: dwells from the gimbal controller's commands) or tumble (a hand
-    // tumble: rests found in the IMU stream, DESIGN.md section 11).
+    // tumble: rests found in the IMU stream, docs/design.md section 11).
     const std::string mode = pnh.param<std::string>("mode", "gimbal");
     if (mode == "tumble") {
       accel_intrinsics::TumbleCalibrationNode node(nh, pnh,

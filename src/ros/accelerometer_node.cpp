@@ -34,7 +34,7 @@ AccelerometerOptions AccelerometerOptions::load(const ros::NodeHandle& pnh) {
   read_matrix3(pnh, "device/S", &s.truth.S);
   read_vector3(pnh, "device/O", &s.truth.O);
   read_effects(pnh, "device/effects", &s.truth.effects);
-  // A device that ages between runs (the lab archive's history, DESIGN.md section 13): S and O
+  // A device that ages between runs (the lab archive's history, docs/design.md section 13): S and O
   // after device/aging/age_days of a linear drift.
   double age_days = 0.0;
   Eigen::Vector3d responsivity_per_day = Eigen::Vector3d::Zero();

@@ -16,7 +16,7 @@
 #include <ostream>
 
 #include "accel_intrinsics/GimbalCommand.h"
-#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/model/protocol.h"
 #include "accel_intrinsics/ros/conversions.h"
 
 namespace accel_intrinsics {

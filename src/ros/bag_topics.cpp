@@ -182,7 +182,7 @@ RunTopics resolve_run_topics(const std::string& imu_requested, const std::string
     }
   }
   const std::string imu_ns = namespace_of(run.imu, names::kImuTopic, imu_requested);
-  // A bag with no gimbal command topic at all is a hand tumble (DESIGN.md section 11): the IMU
+  // A bag with no gimbal command topic at all is a hand tumble (docs/design.md section 11): the IMU
   // alone. A command topic that exists but does not resolve is still an error.
   const bool any_command_topic =
       std::any_of(topics.begin(), topics.end(),

@@ -12,7 +12,7 @@
 
 #include "accel_intrinsics/AbortRun.h"
 #include "accel_intrinsics/ResumeAt.h"
-#include "accel_intrinsics/core/quality.h"
+#include "accel_intrinsics/core/fit/quality.h"
 #include "accel_intrinsics/ros/result_files.h"
 #include "accel_intrinsics/io/analysis_report.h"
 #include "accel_intrinsics/io/atomic_file.h"

@@ -3,7 +3,7 @@
 #include <filesystem>
 #include <stdexcept>
 
-#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/budget_file.h"
 #include "accel_intrinsics/ros/calibration_node.h"
@@ -122,7 +122,7 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
   read_param(pnh, "max_retries", &o.run.max_retries);
   read_param(pnh, "resume_idle_controller", &o.run.resume_idle_controller);
   require(o.run.max_retries <= 100, pnh, "max_retries", "must be in [0, 100]");
-  // Clocks (DESIGN.md section 5).
+  // Clocks (docs/design.md section 5).
   read_param(pnh, "imu_time_offset_s", &o.run.imu_time_offset_s);
   require(std::isfinite(o.run.imu_time_offset_s), pnh, "imu_time_offset_s", "must be finite (s)");
   read_param(pnh, "clock_check", &o.run.check_clock);

@@ -7,7 +7,7 @@
 #include <iomanip>
 #include <ostream>
 
-#include "accel_intrinsics/core/comparison.h"
+#include "accel_intrinsics/core/analysis/comparison.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/comparison_document.h"
 #include "accel_intrinsics/io/result_document.h"

@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "accel_intrinsics/core/quality.h"
+#include "accel_intrinsics/core/fit/quality.h"
 
 namespace accel_intrinsics {
 

@@ -16,7 +16,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "accel_intrinsics/core/noise.h"
+#include "accel_intrinsics/core/noise/noise.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/noise_document.h"
 #include "accel_intrinsics/ros/bag_format.h"

@@ -14,13 +14,13 @@
 #include <sstream>
 #include <vector>
 
-#include "accel_intrinsics/core/calibrate.h"
-#include "accel_intrinsics/core/fit.h"
-#include "accel_intrinsics/core/position_table.h"
-#include "accel_intrinsics/core/rest_detection.h"
-#include "accel_intrinsics/core/noise.h"
-#include "accel_intrinsics/core/samples_file.h"
-#include "accel_intrinsics/core/tumble.h"
+#include "accel_intrinsics/core/run/calibrate.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/dwells/rest_detection.h"
+#include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/dwells/samples_file.h"
+#include "accel_intrinsics/core/fit/tumble.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/io/budget_file.h"
@@ -61,7 +61,7 @@ struct Input {
   io::ResultContext context;  // input description, complete, warnings
   bool from_bag = false;
   core::RawStreams raw;  // bag with --analyze: for the timing-lag estimate
-  // From the run's long rest (DESIGN.md section 12: a dwell at least 10 times the median), when
+  // From the run's long rest (docs/design.md section 12: a dwell at least 10 times the median), when
   // the input has raw samples (a bag): what the fit and the analysis weight the dwells with.
   std::optional<core::NoiseModel> noise_model;
   std::string read_as;   // how the input was taken, when not obvious (prefixes a fit failure)
@@ -117,7 +117,7 @@ void rests_from_stream(std::vector<core::ImuSample> samples, const OfflineFitArg
   input->table.time_origin_s = samples.front().stamp_s;
   input->context.rest_detection = found;
   input->context.rest_min_s = args.rest_min_s;
-  // The noise model of the first rest of at least 30 s, when there is one (DESIGN.md section 12):
+  // The noise model of the first rest of at least 30 s, when there is one (docs/design.md section 12):
   // the tumble fit and its analysis are then generalized least squares across the rests.
   if (core::find_long_rest(input->table)) {
     std::vector<double> stamps;

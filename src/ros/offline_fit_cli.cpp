@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/ros/offline_fit.h"
 

@@ -12,7 +12,7 @@
 #include <memory>
 #include <thread>
 
-#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/emulators/emulators.h"
 #include "accel_intrinsics/drivers/grbl_driver.h"
 #include "accel_intrinsics/drivers/serial_port.h"

@@ -1,4 +1,4 @@
-// The stand's simulated accelerometer with a slow bias (DESIGN.md section 12): its parameters are
+// The stand's simulated accelerometer with a slow bias (docs/design.md section 12): its parameters are
 // checked as ROS parameters name them, each sample carries the one slow-bias process at its
 // time, and a random walk's increments have the variance the configured density says.
 #include <gtest/gtest.h>
@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/drivers/accelerometer_source.h"
 
 namespace accel_intrinsics {

@@ -1,4 +1,4 @@
-// The analysis documents of io: the analysis JSON carries the contract keys (DESIGN.md section 2),
+// The analysis documents of io: the analysis JSON carries the contract keys (docs/design.md section 2),
 // the node's analysis document adds the timing lag and the certificate's model, the residual CSV
 // has one line per residual.
 #include "accel_intrinsics/io/analysis_report.h"
@@ -13,9 +13,9 @@
 #include <vector>
 
 #include "../core/random_device.h"
-#include "accel_intrinsics/core/discrepancy.h"
-#include "accel_intrinsics/core/dwell_assembler.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/analysis/discrepancy.h"
+#include "accel_intrinsics/core/dwells/dwell_assembler.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/residuals_csv.h"
 #include "accel_intrinsics/io/text_report.h"
 

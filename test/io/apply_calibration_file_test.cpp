@@ -12,8 +12,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "accel_intrinsics/core/calibrate.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/run/calibrate.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/io/result_document.h"

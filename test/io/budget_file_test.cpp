@@ -1,5 +1,5 @@
 // The budget file (the shipped config and bad files) and the result's `uncertainty_budget` key:
-// the structure of DESIGN.md section 9, the same in JSON and YAML, read back for comparisons.
+// the structure of docs/design.md section 9, the same in JSON and YAML, read back for comparisons.
 #include "accel_intrinsics/io/budget_file.h"
 
 #include <gtest/gtest.h>
@@ -14,9 +14,9 @@
 #include <string>
 
 #include "../core/random_device.h"
-#include "accel_intrinsics/core/calibrate.h"
-#include "accel_intrinsics/core/constants.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/run/calibrate.h"
+#include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "../support/source_dir.h"

@@ -19,10 +19,10 @@
 #include <sstream>
 #include <string>
 
-#include "accel_intrinsics/core/calibration_forms.h"
-#include "accel_intrinsics/core/fit.h"
-#include "accel_intrinsics/core/noise.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/model/calibration_forms.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "../support/test_files.h"
@@ -46,7 +46,7 @@ SimulationOptions device_options(std::uint64_t seed) {
   return sim;
 }
 
-// The specific force of DESIGN.md section 1 (seed eq. 4), written out again here.
+// The specific force of docs/design.md section 1 (seed eq. 4), written out again here.
 Eigen::Vector3d true_force(const DwellRecord& row, double g) {
   const double s = std::sin(row.angle_rad), c = std::cos(row.angle_rad);
   switch (row.phase) {

@@ -15,8 +15,8 @@
 #include <sstream>
 #include <string>
 
-#include "accel_intrinsics/core/dwell_assembler.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/dwells/dwell_assembler.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/text_report.h"
 #include "../support/test_files.h"
@@ -152,7 +152,7 @@ TEST(ResultDocument, JsonAndYamlHaveTheSameKeysAndValues) {
   const YAML::Node y = YAML::Load(io::result_yaml_text(report(), context));
   expect_same_tree(j, y, "");
 
-  // The keys and their meanings (DESIGN.md section 2).
+  // The keys and their meanings (docs/design.md section 2).
   for (const char* key : {"model",
                           "responsivity",
                           "responsivity_std",
@@ -264,7 +264,7 @@ TEST(ResultDocument, ReadBackFromBothWriters) {
 TEST(ResultDocument, ReadsAnOldNodeYamlWhoseEffectsWereTheFittedTerms) {
   TempDir dir;
   std::ofstream(dir.file("old.yaml"))
-      << "# accel_intrinsics calibration result (keys as offline_fit's JSON, DESIGN.md)\n"
+      << "# accel_intrinsics calibration result (keys as offline_fit's JSON, docs/design.md)\n"
          "stamp: 1700000000.5\n"
          "model: joint+quadratic_nonlinearity[u]\n"
          "responsivity:\n  u: 1.01\n  v: 0.99\n  w: 1.02\n"

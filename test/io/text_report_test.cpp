@@ -11,9 +11,9 @@
 #include <string>
 #include <utility>
 
-#include "accel_intrinsics/core/constants.h"
-#include "accel_intrinsics/core/fit.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace accel_intrinsics {
 namespace {

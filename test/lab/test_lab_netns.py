@@ -1,4 +1,4 @@
-"""A small lab inside this machine (DESIGN.md section 14, issue 26): one network namespace per PC
+"""A small lab inside this machine (docs/design.md section 14, issue 26): one network namespace per PC
 -- the master with the supervisor, two stand PCs, the archive server -- cabled with veth pairs to a
 switch (a bridge in a namespace of its own) on the private subnet 10.213.0.0/24, which the test
 creates and removes itself; nothing else of the machine's network is touched. Every process gets

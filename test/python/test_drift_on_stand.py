@@ -1,4 +1,4 @@
-"""The issue's acceptance run (DESIGN.md section 13): `supervise --archive` on the simulated stand,
+"""The issue's acceptance run (docs/design.md section 13): `supervise --archive` on the simulated stand,
 run 5 times with a device drifting (config/simulated_device.yaml device/aging), gives a history
 that finds the drift (within 3 standard uncertainties of the simulated rate) and a recalibrate_by
 date; the calibration node's `archive` parameter archives every result too. The checks are in

@@ -18,8 +18,8 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/calibrate.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/run/calibrate.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/conversions.h"
 
@@ -43,7 +43,7 @@ core::SimulationOptions device(std::uint64_t seed, double rate_hz) {
   return sim;
 }
 
-// The specific force of DESIGN.md section 1 at a commanded angle.
+// The specific force of docs/design.md section 1 at a commanded angle.
 Eigen::Vector3d true_force(core::Phase phase, double angle, double g) {
   const double s = std::sin(angle), c = std::cos(angle);
   if (phase == core::Phase::X) return g * Eigen::Vector3d(0.0, s, c);

@@ -20,7 +20,7 @@
 
 #include "accel_intrinsics/GetIntrinsics.h"
 #include "accel_intrinsics/GimbalCommand.h"
-#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/model/protocol.h"
 #include "wait_for.h"
 
 namespace ai = accel_intrinsics;

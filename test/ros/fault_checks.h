@@ -13,7 +13,7 @@
 #include <mutex>
 #include <set>
 
-#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 #include "stand_checks.h"
 
 namespace fault_checks {

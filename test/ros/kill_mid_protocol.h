@@ -15,8 +15,8 @@
 #include <set>
 
 #include "accel_intrinsics/GimbalCommand.h"
-#include "accel_intrinsics/core/fit.h"
-#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 #include "stand_checks.h"
 #include "wait_for.h"
 

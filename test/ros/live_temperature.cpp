@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 #include "stand_checks.h"
 
 namespace {

@@ -18,7 +18,7 @@
 #include <random>
 #include <string>
 
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/ros/conversions.h"
 #include "../support/bag_writer.h"
 #include "offline_compare.h"

@@ -15,8 +15,8 @@
 #include <vector>
 
 #include "accel_intrinsics/GimbalCommand.h"
-#include "accel_intrinsics/core/position_table.h"
-#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/model/protocol.h"
 #include "stand_checks.h"
 #include "wait_for.h"
 

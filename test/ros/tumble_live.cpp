@@ -16,11 +16,11 @@
 #include <yaml-cpp/yaml.h>
 
 #include "accel_intrinsics/GetIntrinsics.h"
-#include "accel_intrinsics/core/calibrate.h"
-#include "accel_intrinsics/core/fit.h"
-#include "accel_intrinsics/core/noise.h"
-#include "accel_intrinsics/core/rest_detection.h"
-#include "accel_intrinsics/core/samples_file.h"
+#include "accel_intrinsics/core/run/calibrate.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/dwells/rest_detection.h"
+#include "accel_intrinsics/core/dwells/samples_file.h"
 
 namespace accel_intrinsics {
 namespace {

@@ -1,7 +1,7 @@
 // Two rigs in two namespaces at once (test/ros/two_rigs.test).
 #include <fstream>
 
-#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 #include "stand_checks.h"
 
 namespace {

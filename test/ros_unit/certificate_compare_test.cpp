@@ -18,9 +18,9 @@
 #include <sstream>
 #include <string>
 
-#include "accel_intrinsics/core/calibrate.h"
-#include "accel_intrinsics/core/position_table.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/run/calibrate.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/compare_results.h"
 #include "accel_intrinsics/ros/offline_fit.h"

@@ -15,8 +15,8 @@
 #include <sstream>
 #include <string>
 
-#include "accel_intrinsics/core/position_table.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/ros/offline_fit.h"
 #include "../support/test_files.h"
 

@@ -1,5 +1,5 @@
 // The tf chain the gimbal controller broadcasts reproduces the specific force of model.h
-// (DESIGN.md eq. 4 at the true angle, with the gimbal effects) in all three phases, and the
+// (docs/design.md eq. 4 at the true angle, with the gimbal effects) in all three phases, and the
 // simulated accelerometer turns it into predict_outputs() of the truth device. No roscore.
 #include <gtest/gtest.h>
 #include <tf2/buffer_core.h>
@@ -7,10 +7,10 @@
 #include <cmath>
 #include <vector>
 
-#include "accel_intrinsics/core/constants.h"
-#include "accel_intrinsics/core/model.h"
-#include "accel_intrinsics/core/protocol.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/model/model.h"
+#include "accel_intrinsics/core/model/protocol.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/drivers/accelerometer_source.h"
 #include "accel_intrinsics/drivers/gimbal_driver.h"
 #include "accel_intrinsics/ros/gimbal_controller_node.h"

@@ -1,4 +1,4 @@
-// offline_fit on bags made the way real recordings go wrong (DESIGN.md section 5): IMU stamps
+// offline_fit on bags made the way real recordings go wrong (docs/design.md section 5): IMU stamps
 // on another clock or epoch, duplicated and reordered messages, another frame_id, a run split
 // over several bags, an IMU topic under another name, gaps, outputs in other units. Each ends
 // in the clean run's result or one line that says what is wrong and how to fix it.
@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/ros/conversions.h"
 #include "accel_intrinsics/ros/offline_fit.h"
 #include "../support/bag_writer.h"

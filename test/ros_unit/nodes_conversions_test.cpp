@@ -6,7 +6,7 @@
 #include <map>
 #include <string>
 
-#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/ros/conversions.h"
 
 namespace ai = accel_intrinsics;

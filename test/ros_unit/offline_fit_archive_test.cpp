@@ -1,4 +1,4 @@
-// offline_fit --archive (DESIGN.md section 13), in process: the result goes into a SQLite lab
+// offline_fit --archive (docs/design.md section 13), in process: the result goes into a SQLite lab
 // archive through scripts/archive, once however often it is fitted, and `history` reads it back;
 // an archive that cannot be reached is a warning, the result file stays.
 #include <gtest/gtest.h>

@@ -27,11 +27,11 @@
 #include <vector>
 
 #include "accel_intrinsics/GimbalCommand.h"
-#include "accel_intrinsics/core/calibrate.h"
-#include "accel_intrinsics/core/dwell_assembler.h"
-#include "accel_intrinsics/core/fit.h"
-#include "accel_intrinsics/core/position_table.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/run/calibrate.h"
+#include "accel_intrinsics/core/dwells/dwell_assembler.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/bag_input.h"
 #include "accel_intrinsics/ros/conversions.h"
@@ -302,7 +302,7 @@ void expect_single_line_error(const ToolRun& r, const std::string& needle) {
   EXPECT_NE(r.err.find(needle), std::string::npos) << "expected '" << needle << "' in: " << r.err;
 }
 
-// The contract keys (DESIGN.md section 2) and their shapes.
+// The contract keys (docs/design.md section 2) and their shapes.
 void expect_contract_keys(const json& j) {
   for (const char* key :
        {"model", "responsivity", "responsivity_std", "angles_deg", "angles_std_deg", "vectors",
@@ -711,7 +711,7 @@ TEST(OfflineFitBadInput, MissingTopicIsNamedAndBagTopicsListed) {
   EXPECT_NE(r.err.find("/gimbal/command (accel_intrinsics/GimbalCommand"), std::string::npos)
       << r.err;
 
-  // A bag with IMU data only is a hand tumble (DESIGN.md section 11); one second of the device
+  // A bag with IMU data only is a hand tumble (docs/design.md section 11); one second of the device
   // lying still has one rest, far too few.
   {
     HandBagWriter writer(dir.file("imu_only.bag"));

@@ -13,8 +13,8 @@
 #include <string>
 
 #include "accel_intrinsics/GimbalCommand.h"
-#include "accel_intrinsics/core/constants.h"
-#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/model/protocol.h"
 #include "accel_intrinsics/ros/offline_fit.h"
 #include "../support/bag_writer.h"
 #include "../support/test_files.h"

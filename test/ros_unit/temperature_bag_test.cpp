@@ -1,4 +1,4 @@
-// offline_fit with a DUT temperature topic (DESIGN.md section 10): a bag written here by hand
+// offline_fit with a DUT temperature topic (docs/design.md section 10): a bag written here by hand
 // (test_support::BagWriter, not from our simulator) holds gimbal commands, IMU samples and sensor_msgs/Temperature
 // readings; offline_fit must put the mean reading of each dwell into the position table's
 // temperature_c column, computed here independently from the readings written.
@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "accel_intrinsics/GimbalCommand.h"
-#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/ros/bag_input.h"
 #include "accel_intrinsics/ros/offline_fit.h"
 #include "../support/bag_writer.h"

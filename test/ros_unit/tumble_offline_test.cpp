@@ -1,4 +1,4 @@
-// offline_fit on hand tumbles (DESIGN.md section 11): imu_tk's real Xsens session read as that
+// offline_fit on hand tumbles (docs/design.md section 11): imu_tk's real Xsens session read as that
 // tool ships it and compared with the result imu_tk itself computes for it; a bag holding the IMU
 // topic alone, written here with rosbag (duplicated, reordered and shifted stamps); a gimbal run
 // fitted with --unknown-orientations against the gimbal fit.
@@ -18,10 +18,10 @@
 #include "../support/source_dir.h"
 #include "../support/statistical_bounds.h"
 #include "../support/test_files.h"
-#include "accel_intrinsics/core/intrinsics.h"
-#include "accel_intrinsics/core/samples_file.h"
-#include "accel_intrinsics/core/simulator.h"
-#include "accel_intrinsics/core/tumble_simulator.h"
+#include "accel_intrinsics/core/model/intrinsics.h"
+#include "accel_intrinsics/core/dwells/samples_file.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
+#include "accel_intrinsics/core/simulation/tumble_simulator.h"
 #include "accel_intrinsics/ros/compare_results.h"
 #include "accel_intrinsics/ros/offline_fit.h"
 
@@ -76,7 +76,7 @@ TEST(TumbleOffline, ImuTkXsensSessionAgreesWithImuTksOwnResult) {
   EXPECT_GE(rests, 34u);
   EXPECT_LE(rests, 40u);
   EXPECT_FALSE(j["rejected_spans"].empty());
-  // Real noise is not white (DESIGN.md section 12): with white weights the reduced chi-square is
+  // Real noise is not white (docs/design.md section 12): with white weights the reduced chi-square is
   // 16.6; with the noise model of the 51 s first rest, GLS across the rests, it is 1.34 (29 dof),
   // within its chi-square band (the rests' errors are correlated, as the model says).
   EXPECT_NE(j["noise_model"], "white");

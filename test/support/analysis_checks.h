@@ -10,8 +10,8 @@
 #include <sstream>
 #include <string>
 
-#include "accel_intrinsics/core/discrepancy.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/analysis/discrepancy.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "statistical_bounds.h"
 
 namespace accel_intrinsics {

@@ -16,8 +16,8 @@
 #include <string>
 
 #include "accel_intrinsics/GimbalCommand.h"
-#include "accel_intrinsics/core/dwell_assembler.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/dwells/dwell_assembler.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/ros/conversions.h"
 
 namespace accel_intrinsics {

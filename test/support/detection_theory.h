@@ -1,11 +1,11 @@
 // Detection power of a hidden effect, computed independently of the discrepancy analysis
-// (issue 15 item 2): shared by test/core/detection_theory_test.cpp and bench/detection_bench.cpp,
-// deliberately NOT in the core library and calling nothing of src/core/discrepancy.cpp or fit.cpp.
+// (issue 15 item 2): shared by test/core/analysis/detection_theory_test.cpp and bench/detection_bench.cpp,
+// deliberately NOT in the core library and calling nothing of src/core/analysis/discrepancy.cpp or fit.cpp.
 //
 // Linear model of the dwell means with KNOWN noise (the simulator's sigma per accelerometer,
 // standard error sigma_s / sqrt(n) per dwell), whitened (every row divided by its standard error):
-//   base model (joint, DESIGN.md section 1): accelerometer s, rows (g f^T, 1) in its own outputs;
-//   effect term (DESIGN.md section 3): the column b = dR/d(value) at value 0, written out here from
+//   base model (joint, docs/design.md section 1): accelerometer s, rows (g f^T, 1) in its own outputs;
+//   effect term (docs/design.md section 3): the column b = dR/d(value) at value 0, written out here from
 //   the table of section 3 (not from core::predict_outputs).
 // The part of b the base model cannot absorb is b_perp = (I - A (A^T A)^-1 A^T) b; the score
 // statistic of the effect is T ~ chi2_1(lambda) with non-centrality lambda = value^2 |b_perp|^2
@@ -26,9 +26,9 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/effects.h"
-#include "accel_intrinsics/core/position_table.h"
-#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/model/effects.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/model/protocol.h"
 
 namespace accel_intrinsics {
 namespace detection_theory {
@@ -103,7 +103,7 @@ inline Eigen::MatrixXd base_design(const Problem& pr) {
   return A;
 }
 
-// Whitened column dR/d(value) of an effect at value 0 (DESIGN.md section 3).
+// Whitened column dR/d(value) of an effect at value 0 (docs/design.md section 3).
 inline Eigen::VectorXd effect_column(const Problem& pr, const core::Effect& e) {
   using core::EffectKind;
   const std::size_t n = pr.dwells.size();

@@ -12,10 +12,10 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/constants.h"
-#include "accel_intrinsics/core/dwell_assembler.h"
-#include "accel_intrinsics/core/model.h"
-#include "accel_intrinsics/core/simulator.h"
+#include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/dwells/dwell_assembler.h"
+#include "accel_intrinsics/core/model/model.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace accel_intrinsics {
 
@@ -60,7 +60,7 @@ struct SimulatedAccelerometerOptions {
   // hold at that temperature (a fit reports them at the run's mean temperature instead).
   core::TemperatureProfile temperature;
   double temperature_reference_c = 25.0;
-  // Slow bias per accelerometer (core::SimulationOptions, DESIGN.md section 12): Gauss-Markov
+  // Slow bias per accelerometer (core::SimulationOptions, docs/design.md section 12): Gauss-Markov
   // (bias_gm_sigma m/s^2, correlation time bias_gm_tau_s s) and a random walk (bias_random_walk,
   // (m/s^2)/sqrt(s)); 0 = none. Device YAML keys bias/gm_sigma, bias/gm_tau_s, bias/random_walk.
   double bias_gm_sigma = 0.0;
@@ -85,7 +85,7 @@ class SimulatedAccelerometer : public AccelerometerSource {
   double variance_per_axis() const override;
   void restart() override;
 
-  // t0 of the offset_drift term: the first gimbal command (DESIGN.md section 3). Until it is
+  // t0 of the offset_drift term: the first gimbal command (docs/design.md section 3). Until it is
   // known the drift term is zero.
   void set_time_origin(double t0_s) { time_origin_s_ = t0_s; }
 

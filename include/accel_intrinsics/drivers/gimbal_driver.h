@@ -7,7 +7,7 @@
 //   gimbal -> dut:   the mount of the DUT for the phase, which puts the DUT's own p axis on the
 //                    gimbal axis (a remount between phases).
 // The chain is built so that the specific force in the DUT frame, R_world_dut^T (0, 0, g), is
-// DESIGN.md eq. (4) at the TRUE angle: x: g(0, sin a, cos a), y: g(sin a, 0, cos a),
+// docs/design.md eq. (4) at the TRUE angle: x: g(0, sin a, cos a), y: g(sin a, 0, cos a),
 // z: g(sin a, cos a, 0), with the tilt applied as in model.h (test/ros_unit/gimbal_tf_test.cpp).
 #pragma once
 
@@ -19,9 +19,9 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/effects.h"
-#include "accel_intrinsics/core/gimbal_protocol.h"
-#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/model/effects.h"
+#include "accel_intrinsics/core/run/gimbal_protocol.h"
+#include "accel_intrinsics/core/model/protocol.h"
 
 namespace accel_intrinsics {
 
@@ -58,7 +58,7 @@ class GimbalDriver : public core::GimbalMotion {
   virtual GimbalTransforms orientation(double t_s) const = 0;
 };
 
-// The simulated gimbal. Its effects are the gimbal side of DESIGN.md section 3 and are read from
+// The simulated gimbal. Its effects are the gimbal side of docs/design.md section 3 and are read from
 // the gimbal controller's own configuration; the calibration side never sees them.
 // A move within a phase follows core::move_fraction() (simulator.h) from the MOVING time to
 // the settled time, move_s + settle_s later: the commanded angle of the simulator and of the

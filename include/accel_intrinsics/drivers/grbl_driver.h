@@ -1,4 +1,4 @@
-// GRBL 1.1 gimbal driver (DESIGN.md section 10), from GRBL's own interface documentation:
+// GRBL 1.1 gimbal driver (docs/design.md section 10), from GRBL's own interface documentation:
 //  - lines end in "\n"; every line is answered "ok" or "error:N" (send-response: one line in
 //    flight at a time);
 //  - moves: "G21 G90 G0 X<deg> Y<deg>" (absolute, rapid; one GRBL "mm" is one degree of the

@@ -1,4 +1,4 @@
-// Newport SMC100CC / SMC100PP gimbal driver (DESIGN.md section 10). One controller per axis,
+// Newport SMC100CC / SMC100PP gimbal driver (docs/design.md section 10). One controller per axis,
 // each with its RS-485 address 1..31 (the axis name in the axis map), all on one serial port.
 // Commands are "<address><two letters>[value]" ended by "\r\n" (57600 baud, 8N1):
 //   nnPA<deg>  move absolute (no reply; nnTE? tells whether it was accepted)

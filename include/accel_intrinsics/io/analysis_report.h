@@ -6,8 +6,8 @@
 #include <iosfwd>
 #include <string>
 
-#include "accel_intrinsics/core/calibrate.h"
-#include "accel_intrinsics/core/discrepancy.h"
+#include "accel_intrinsics/core/run/calibrate.h"
+#include "accel_intrinsics/core/analysis/discrepancy.h"
 #include "accel_intrinsics/io/result_document.h"
 
 namespace accel_intrinsics {
@@ -15,7 +15,7 @@ namespace io {
 
 // The analysis alone: `effects` [{name, target, value, std, p_value, unit, p_raw, score_chi2,
 // delta_chi2, step, closest_alternative, closest_correlation}], `ambiguous`, `gap {before,
-// after}` (DESIGN.md section 2) plus localization, model_before, model_after, local_gravity,
+// after}` (docs/design.md section 2) plus localization, model_before, model_after, local_gravity,
 // stop_reason, screening, unidentifiable, not_screened, unobservable.
 std::string analysis_json_text(const core::AnalysisResult& analysis);
 

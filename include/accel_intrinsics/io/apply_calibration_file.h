@@ -1,4 +1,4 @@
-// The calibration the apply node uses (DESIGN.md section 7): a = P (R - O), read from our result
+// The calibration the apply node uses (docs/design.md section 7): a = P (R - O), read from our result
 // files (offline_fit's JSON, the calibration node's intrinsics.yaml: read_result_file) or from a
 // dpkoch/imu_calib YAML (SM, bias: corrected = SM raw - bias, so P = SM and O = SM^-1 bias).
 #pragma once

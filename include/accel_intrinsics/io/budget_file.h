@@ -1,4 +1,4 @@
-// The uncertainty budget file (DESIGN.md section 9; config/uncertainty_budget.yaml is the
+// The uncertainty budget file (docs/design.md section 9; config/uncertainty_budget.yaml is the
 // commented template): the standard uncertainties of the rig's error sources (core::BudgetSpec)
 // and a `certificate:` block of lab fields (lab, device, serial, operator, ...) printed on the
 // certificate. Read by offline_fit --budget and the calibration node's budget_file.
@@ -8,7 +8,7 @@
 #include <utility>
 #include <vector>
 
-#include "accel_intrinsics/core/uncertainty_budget.h"
+#include "accel_intrinsics/core/analysis/uncertainty_budget.h"
 
 namespace accel_intrinsics {
 namespace io {

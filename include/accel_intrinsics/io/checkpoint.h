@@ -1,5 +1,5 @@
 // The calibration run's checkpoint in output_dir, so that nothing measured is lost when the node
-// dies (DESIGN.md section 4, "io"):
+// dies (docs/design.md section 4, "io"):
 //   <prefix>position_table.csv      the accepted rows, one flushed line per dwell (the contract's
 //                                   position table); a channel that starts late widens it
 //   <prefix>calibration_state.yaml  time_origin_s, steps, rows, done, fault; atomic rewrite
@@ -10,8 +10,8 @@
 #include <optional>
 #include <string>
 
-#include "accel_intrinsics/core/calibration_run.h"
-#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/run/calibration_run.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 
 namespace accel_intrinsics {
 namespace io {

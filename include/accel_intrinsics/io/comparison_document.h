@@ -1,4 +1,4 @@
-// Comparison inputs and output (DESIGN.md section 9): result files read into the nine parameters
+// Comparison inputs and output (docs/design.md section 9): result files read into the nine parameters
 // with expanded uncertainties, and the comparison JSON:
 //   {"results": [names], "local_gravity", "k", "uncertainty": "budget" | "type_a_only",
 //    "parameters": {"responsivity_u": {"values": [...], "U": [...], "E_n": [...],
@@ -10,7 +10,7 @@
 
 #include <string>
 
-#include "accel_intrinsics/core/comparison.h"
+#include "accel_intrinsics/core/analysis/comparison.h"
 #include "accel_intrinsics/io/result_document.h"
 
 namespace accel_intrinsics {

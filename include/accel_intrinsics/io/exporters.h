@@ -1,4 +1,4 @@
-// Exporters: the fitted calibration written for the tools users already run (DESIGN.md section
+// Exporters: the fitted calibration written for the tools users already run (docs/design.md section
 // 7), one writer per format. With a the specific force in the DUT frame and R the raw outputs,
 // our model is R = S a + O and a = P (R - O), P = S^-1. Each file says in a comment (imucal: its
 // `comment` key) the direction of its matrix, the local g the responsivities refer to, the date
@@ -29,7 +29,7 @@
 #include <utility>
 #include <vector>
 
-#include "accel_intrinsics/core/fit.h"
+#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/io/result_document.h"
 
 namespace accel_intrinsics {
@@ -59,7 +59,7 @@ struct CalibrationToExport {
   // Fitted terms beyond S and O (e.g. "quadratic_nonlinearity[u]"): no format holds them; every
   // file names them as left out.
   std::vector<std::string> terms_left_out;
-  // Noise (DESIGN.md section 8), NaN when unknown: white-noise density (m/s^2)/sqrt(Hz) and
+  // Noise (docs/design.md section 8), NaN when unknown: white-noise density (m/s^2)/sqrt(Hz) and
   // random walk (m/s^3)/sqrt(Hz) per accelerometer, sample rate.
   Eigen::Vector3d noise_density = Eigen::Vector3d::Constant(kUnknown);
   Eigen::Vector3d random_walk = Eigen::Vector3d::Constant(kUnknown);

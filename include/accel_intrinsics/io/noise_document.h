@@ -1,4 +1,4 @@
-// noise_report's files (DESIGN.md section 8): the JSON document, and kalibr's IMU configuration
+// noise_report's files (docs/design.md section 8): the JSON document, and kalibr's IMU configuration
 // (its accelerometer keys).
 //
 // JSON keys: noise_density {u,v,w} ((m/s^2)/sqrt(Hz), continuous-time white-noise density N,
@@ -12,7 +12,7 @@
 
 #include <string>
 
-#include "accel_intrinsics/core/noise.h"
+#include "accel_intrinsics/core/noise/noise.h"
 
 namespace accel_intrinsics {
 namespace io {

@@ -1,8 +1,8 @@
 // The result of a calibration as a document: one key list, emitted as JSON (offline_fit --json)
 // or YAML (the calibration node's intrinsics.yaml), so that a key means the same in both
-// (DESIGN.md sections 2 and 4). Keys, all from one function:
+// (docs/design.md sections 2 and 4). Keys, all from one function:
 //
-//   contract (DESIGN.md section 2): model (joint|eq4), responsivity {u,v,w}, responsivity_std,
+//   contract (docs/design.md section 2): model (joint|eq4), responsivity {u,v,w}, responsivity_std,
 //     angles_deg {uv,vw,wu}, angles_std_deg, vectors {u,v,w: [x,y,z]}, offset {u,v,w},
 //     offset_per_phase {u,v,w: {x,y,z}}, cross_sensitivity (3x3, rows), local_gravity,
 //     reduced_chi2, residual_rms, positions {x,y,z}
@@ -11,7 +11,7 @@
 //     cross_sensitivity_std, chi2, dof, fitted_effects [{name, target, value, std}] (the terms
 //     fitted in the certificate model), noise_model ("white", or {kind, source, rate_hz, rest
 //     {t_start, t_end, samples}, axes {u,v,w: {white_std, gm_sigma, gm_tau_s, rw_density, slow_scale_rel_var}}}: the
-//     noise of the dwell means the fit used, DESIGN.md section 12)
+//     noise of the dwell means the fit used, docs/design.md section 12)
 //   from the dwells (core/noise.h), when they tell: noise_density {u,v,w} ((m/s^2)/sqrt(Hz), the
 //     continuous-time density sample_std / sqrt(rate)), noise_density_std, sample_rate_hz
 //   always: certificate_model (model_label of the certificate), certificate_policy (base|refit)
@@ -22,7 +22,7 @@
 //     (analysis_report.h; never replacing a key above), timing_lag when estimated;
 //     analysis_error when the analysis failed
 //   with a budget (offline_fit --budget, the node's budget_file): uncertainty_budget {sources,
-//     combined_std, expanded {k, ...}, samples, seed, method} (DESIGN.md section 9), and
+//     combined_std, expanded {k, ...}, samples, seed, method} (docs/design.md section 9), and
 //     certificate {lab, device, ...} (the budget file's certificate block) when it has fields
 //   always: method (gimbal|positions|tumble); a tumble: frame, coverage {cone_deg, complete,
 //     missing, closest_deg}, next_pose {up, words, target, ...}, rests [{t_start, t_end, n, mean,
@@ -43,12 +43,12 @@
 #include <utility>
 #include <vector>
 
-#include "accel_intrinsics/core/calibrate.h"
-#include "accel_intrinsics/core/dwell_assembler.h"
-#include "accel_intrinsics/core/fit.h"
-#include "accel_intrinsics/core/intrinsics.h"
-#include "accel_intrinsics/core/rest_detection.h"
-#include "accel_intrinsics/core/uncertainty_budget.h"
+#include "accel_intrinsics/core/run/calibrate.h"
+#include "accel_intrinsics/core/dwells/dwell_assembler.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/model/intrinsics.h"
+#include "accel_intrinsics/core/dwells/rest_detection.h"
+#include "accel_intrinsics/core/analysis/uncertainty_budget.h"
 
 namespace accel_intrinsics {
 namespace io {
@@ -91,7 +91,7 @@ struct ResultContext {
   // ("local_gravity_source"); empty: omitted.
   std::vector<std::pair<std::string, std::string>> certificate;
   std::string gravity_source;
-  // A hand tumble (DESIGN.md section 11): the rests fitted and the spans rejected ("rests",
+  // A hand tumble (docs/design.md section 11): the rests fitted and the spans rejected ("rests",
   // "rejected_spans"), and, when found in a stream, the detector's levels ("rest_detection").
   std::optional<core::RestDetection> rest_detection;
   double rest_min_s = 0.0;
@@ -131,7 +131,7 @@ struct StoredResult {
   // uncertainty_budget.expanded when the result has one (comparisons, certificates).
   std::optional<core::IntrinsicValues> expanded;  // angles in radians
   double coverage_factor = 2.0;
-  // The quality gate (DESIGN.md section 5); a file written before the gate existed passes.
+  // The quality gate (docs/design.md section 5); a file written before the gate existed passes.
   bool quality_pass = true;
   std::vector<std::string> quality_reasons;
 };

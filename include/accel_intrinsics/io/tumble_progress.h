@@ -7,7 +7,7 @@
 
 #include <string>
 
-#include "accel_intrinsics/core/tumble_session.h"
+#include "accel_intrinsics/core/run/tumble_session.h"
 
 namespace accel_intrinsics {
 namespace io {

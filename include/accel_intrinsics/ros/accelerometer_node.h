@@ -1,5 +1,5 @@
 // The accelerometer node: publishes the samples of an AccelerometerSource on imu/data_raw as
-// sensor_msgs/Imu (REP 145 and DESIGN.md section 2: linear_acceleration carries R_u, R_v, R_w).
+// sensor_msgs/Imu (REP 145 and docs/design.md section 2: linear_acceleration carries R_u, R_v, R_w).
 // The simulated source reads the DUT orientation from tf (the relative topic "tf", so rigs in
 // different namespaces stay apart) at each sample time.
 #pragma once

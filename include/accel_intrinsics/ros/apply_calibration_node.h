@@ -1,4 +1,4 @@
-// apply_calibration: corrects a live IMU stream with a fitted calibration (DESIGN.md section 7).
+// apply_calibration: corrects a live IMU stream with a fitted calibration (docs/design.md section 7).
 // Subscribes imu/data_raw, publishes imu/data_calibrated with linear_acceleration = P (R - O);
 // every other field is passed through. linear_acceleration_covariance: P diag(sigma^2) P^T when
 // the calibration file states the noise (a result with noise_density and sample_rate_hz), else

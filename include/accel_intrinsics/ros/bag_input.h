@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/clock_check.h"
-#include "accel_intrinsics/core/dwell_assembler.h"
-#include "accel_intrinsics/core/position_table.h"
+#include "accel_intrinsics/core/analysis/clock_check.h"
+#include "accel_intrinsics/core/dwells/dwell_assembler.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/ros/bag_topics.h"
 #include "accel_intrinsics/ros/channel_messages.h"
 #include "accel_intrinsics/ros/names.h"
@@ -24,7 +24,7 @@ struct BagInputOptions {
   // "/<ns>/imu/data_raw"; a leading '/' asks for that exact topic. See resolve_topic().
   std::string imu_topic = names::kImuTopic;
   std::string command_topic = names::kGimbalCommandTopic;
-  // The per-dwell channels' topics (core::kChannels; the DUT temperature, DESIGN.md section 10):
+  // The per-dwell channels' topics (core::kChannels; the DUT temperature, docs/design.md section 10):
   // each read when the bag has it (each dwell then records its value); "" never reads one.
   core::PerChannel<std::string> channel_topics = default_channel_topics();
   // Dwell assembly. The reorder window defaults to 10 s, wider than any shipped configuration
@@ -52,7 +52,7 @@ struct BagInputOptions {
   // the raw-stream analyses (timing lag). Memory then grows with the bag.
   std::vector<core::GimbalEvent>* raw_commands = nullptr;
   std::vector<core::ImuSample>* raw_samples = nullptr;
-  // Added to every IMU stamp (a device clock offset from the gimbal's; DESIGN.md section 5).
+  // Added to every IMU stamp (a device clock offset from the gimbal's; docs/design.md section 5).
   double imu_time_offset_s = 0.0;
   // When set, sees every accepted command and (shifted) IMU sample: the clock check.
   core::ClockCheck* clock_check = nullptr;

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/dwell_record.h"
+#include "accel_intrinsics/core/dwells/dwell_record.h"
 #include "accel_intrinsics/ros/bag_format.h"
 
 namespace accel_intrinsics {

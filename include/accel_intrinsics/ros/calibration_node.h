@@ -31,8 +31,8 @@
 #include "accel_intrinsics/GetIntrinsics.h"
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/IntrinsicResult.h"
-#include "accel_intrinsics/core/calibrate.h"
-#include "accel_intrinsics/core/calibration_run.h"
+#include "accel_intrinsics/core/run/calibrate.h"
+#include "accel_intrinsics/core/run/calibration_run.h"
 #include "accel_intrinsics/io/checkpoint.h"
 #include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/ros/immediate_callback_queue.h"
@@ -52,7 +52,7 @@ struct CalibrationOptions {
   std::string output_dir;         // checkpoint, result YAML, analysis JSON; empty = no files
   std::string file_prefix;        // prefix of the file names in output_dir
   std::vector<io::ExportFormat> exports;  // written into output_dir with each result
-  // Lab archive URL (scripts/archive add after each result file; DESIGN.md section 13); empty:
+  // Lab archive URL (scripts/archive add after each result file; docs/design.md section 13); empty:
   // none. Serial and rig of the record when the budget file's certificate block has none.
   std::string archive;
   std::string archive_device;

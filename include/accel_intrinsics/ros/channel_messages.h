@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/dwell_record.h"
+#include "accel_intrinsics/core/dwells/dwell_record.h"
 
 namespace accel_intrinsics {
 

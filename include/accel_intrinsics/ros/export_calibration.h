@@ -1,5 +1,5 @@
 // export_calibration: a saved result (offline_fit's JSON or the calibration node's
-// intrinsics.yaml) written for another tool (io/exporters.h, DESIGN.md section 7).
+// intrinsics.yaml) written for another tool (io/exporters.h, docs/design.md section 7).
 //
 //   rosrun accel_intrinsics export_calibration --result RESULT --format NAME --out FILE
 //

@@ -11,7 +11,7 @@
 // the MOVING (or DONE) it published. gimbal_controller/abort (std_srvs/Trigger, as start) aborts
 // by hand; gimbal_controller/abort_run (srv/AbortRun.srv) aborts with a reason.
 //
-// Hardware (DESIGN.md section 10): ~driver grbl or smc100 drive a serial gimbal (serial_gimbal.h)
+// Hardware (docs/design.md section 10): ~driver grbl or smc100 drive a serial gimbal (serial_gimbal.h)
 // configured under ~grbl/... or ~smc100/... (port, timeouts, settling, homing, and the per-phase
 // axis map ~<driver>/phases/{x,y,z}: axis, sign, zero_deg, hold, manual_remount). A fault of the
 // device aborts the run with the device's words. Before a phase that needs a manual remount the
@@ -32,8 +32,8 @@
 #include "accel_intrinsics/AbortRun.h"
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/ResumeAt.h"
-#include "accel_intrinsics/core/gimbal_protocol.h"
-#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/run/gimbal_protocol.h"
+#include "accel_intrinsics/core/model/protocol.h"
 #include "accel_intrinsics/drivers/gimbal_driver.h"
 #include "accel_intrinsics/drivers/serial_gimbal.h"
 

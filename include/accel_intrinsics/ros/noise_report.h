@@ -1,4 +1,4 @@
-// noise_report: noise figures of a long static recording (DESIGN.md section 8).
+// noise_report: noise figures of a long static recording (docs/design.md section 8).
 //
 //   rosrun accel_intrinsics noise_report (--bag FILE | --csv SAMPLES.csv) [--imu-topic T]
 //       [--json OUT] [--plot OUT.png] [--kalibr OUT.yaml]

@@ -1,5 +1,5 @@
 // offline_fit as a library: recalibrates from a recorded bag or a CSV position table, without
-// playback (DESIGN.md section 2, "Offline tool"). src/nodes/offline_fit.cpp is its command line;
+// playback (docs/design.md section 2, "Offline tool"). src/nodes/offline_fit.cpp is its command line;
 // tests call run_offline_fit() in process.
 //
 //   offline_fit (--bag FILE|DIR [--bag ...] | --csv FILE | --samples FILE) [--unknown-orientations]
@@ -13,7 +13,7 @@
 // that determines S and O, and a gimbal run missing a phase when the others determine S: the
 // result is then marked incomplete, naming the phase. eq4 needs the three phases.
 //
-// A hand tumble (DESIGN.md section 11): --samples FILE (t,x,y,z), or a bag with the IMU topic and
+// A hand tumble (docs/design.md section 11): --samples FILE (t,x,y,z), or a bag with the IMU topic and
 // no gimbal commands: rests are found in the stream (core/rest_detection.h) and fitted by
 // |P (mean - O)| = g (core/tumble.h); the result says "method": "tumble", its "frame", every rest
 // and rejected span, the coverage (an incomplete one names the missing direction) and the next
@@ -52,7 +52,7 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/constants.h"
+#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/ros/channel_messages.h"
 #include "accel_intrinsics/ros/names.h"
 
@@ -75,7 +75,7 @@ struct OfflineFitArguments {
   std::string csv;
   // Raw samples t,x,y,z (core/samples_file.h): a hand tumble, rests found in the stream.
   std::string samples;
-  // Fit the dwells of a gimbal bag or table as rests of unknown orientation (DESIGN.md section 11):
+  // Fit the dwells of a gimbal bag or table as rests of unknown orientation (docs/design.md section 11):
   // with compare_results, tells a gimbal angle error from a device property.
   bool unknown_orientations = false;
   double rest_min_s = 2.0;  // shortest rest kept (samples, or a bag without gimbal commands)
@@ -97,7 +97,7 @@ struct OfflineFitArguments {
   std::vector<std::string> exports;  // "NAME=FILE", each parsed by io::parse_export_spec
   std::string budget;      // uncertainty budget file (YAML); empty: type A only
   std::string report_pdf;  // certificate PDF; empty: none
-  // Lab archive URL (scripts/archive, DESIGN.md section 13); empty: none. device and rig name
+  // Lab archive URL (scripts/archive, docs/design.md section 13); empty: none. device and rig name
   // the record when the budget file's certificate block has no serial or rig.
   std::string archive;
   std::string device;

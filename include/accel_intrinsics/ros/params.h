@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/effects.h"
-#include "accel_intrinsics/core/protocol.h"
+#include "accel_intrinsics/core/model/effects.h"
+#include "accel_intrinsics/core/model/protocol.h"
 
 namespace accel_intrinsics {
 
@@ -63,7 +63,7 @@ bool read_matrix3(const ros::NodeHandle& nh, const std::string& name, Eigen::Mat
 // A 3-vector given as a list of 3 numbers.
 bool read_vector3(const ros::NodeHandle& nh, const std::string& name, Eigen::Vector3d* value);
 // Effect terms: a list of {name: quadratic_nonlinearity, target: u, value: 1.0e-4}
-// (DESIGN.md section 3). Throws ParamError naming the entry ("effects[1].target").
+// (docs/design.md section 3). Throws ParamError naming the entry ("effects[1].target").
 bool read_effects(const ros::NodeHandle& nh, const std::string& name,
                   std::vector<core::Effect>* value);
 // The protocol (steps, move_s, settle_s, dwell_s, phase_change_s, two_way, closing_position),

@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/calibrate.h"
-#include "accel_intrinsics/core/calibration_run.h"
+#include "accel_intrinsics/core/run/calibrate.h"
+#include "accel_intrinsics/core/run/calibration_run.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/checkpoint.h"
 #include "accel_intrinsics/io/exporters.h"

@@ -17,7 +17,7 @@ struct SimClockOptions {
   double start_s = 100.0;   // simulated time of the first message, s (> 0: 0 means "no time")
   // Wall time (s since the epoch) at which simulated time was start_s; 0: this process's start.
   // A clock restarted with the same wall_epoch_s continues its timeline instead of going back
-  // to start_s (a stand PC or the whole lab restarted mid-run, DESIGN.md section 14).
+  // to start_s (a stand PC or the whole lab restarted mid-run, docs/design.md section 14).
   double wall_epoch_s = 0.0;
 
   // Reads the private parameters; throws ParamError naming the parameter.

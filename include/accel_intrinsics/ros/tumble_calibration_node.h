@@ -1,4 +1,4 @@
-// The calibration node in mode: tumble (DESIGN.md section 11): no gimbal controller. A thin shell
+// The calibration node in mode: tumble (docs/design.md section 11): no gimbal controller. A thin shell
 // around core::TumbleSession: imu/data_raw in; rests found as they end; after each rest (and once
 // a second) the progress on calibration/tumble_progress (std_msgs/String, latched, the JSON of
 // io::tumble_progress_json: rests, coverage, current relative uncertainties, the next pose in
@@ -16,7 +16,7 @@
 
 #include "accel_intrinsics/GetIntrinsics.h"
 #include "accel_intrinsics/IntrinsicResult.h"
-#include "accel_intrinsics/core/tumble_session.h"
+#include "accel_intrinsics/core/run/tumble_session.h"
 #include "accel_intrinsics/io/checkpoint.h"
 #include "accel_intrinsics/ros/calibration_node.h"
 

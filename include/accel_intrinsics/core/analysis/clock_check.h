@@ -1,0 +1,94 @@
+// Do the IMU and the gimbal stamp on one clock? (docs/design.md section 5.) A DUT that turns changes
+// its outputs while the gimbal moves, so the motion seen in the IMU stream must fall inside the
+// gimbal's MOVING -> SETTLED intervals. ClockCheck collects a compact summary of both streams
+// (IMU bin sums of `bin_s`, the gimbal's commands) and finds the shift of the IMU stamps:
+//  1. coarse: the shifts that put most of the IMU motion inside the moves (every shift that lets
+//     the streams overlap; periodic moves make shifts by whole steps almost as good);
+//  2. among those, the one whose dwell means fit the rig model best (a shift by a step assigns
+//     every dwell the wrong angle);
+//  3. fine: the median, over the moves of a phase, of the motion's centroid minus the move's
+//     midpoint (motion profiles are symmetric: raised cosine, trapezoid).
+// A shift of `min_offset_s` or more is an unsynchronized clock: the run must not be fitted.
+// Smaller lags are the timing-lag analysis' job (raw_stream_analysis.h). A gimbal that reports
+// SETTLED long after it stopped moving biases step 3 by half that delay; such a shift is not
+// reported, since it moves no motion out of the dwells (min_gain).
+//
+// Memory: one bin per `bin_s` of IMU time (100 per second by default), whatever the IMU rate.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "accel_intrinsics/core/dwells/dwell_assembler.h"
+
+namespace accel_intrinsics {
+namespace core {
+
+struct ClockCheckOptions {
+  double bin_s = 0.01;  // resolution of the offset found
+  // Motion is the change between the mean outputs of two adjacent blocks of this length: long
+  // enough to rise above the noise, short against a move.
+  double block_s = 0.1;
+  double min_offset_s = 0.05;
+  double min_rate_hz = 20.0;  // sparser IMU streams are not checked  // smaller shifts pass (timing lag, filter delay)
+  // The IMU motion must follow the moves: at the best shift at least this share of it lies
+  // inside them, or the check cannot tell (a DUT that does not turn, a table of other data).
+  double min_explained = 0.5;
+  // An offset must put at least this share of the motion more inside the (unpadded) step moves
+  // than none: the motion it would otherwise leave in the dwells. A gimbal that reports SETTLED a
+  // delay after it stops looks like an IMU clock half that delay early, but all its motion lies
+  // inside the moves: it passes.
+  double min_gain = 0.01;
+  // Coarse shifts explaining at least (1 - alias_tolerance) x the best are compared by fit.
+  double alias_tolerance = 0.1;
+  // Longest stretch of IMU time summarized (bins beyond it are not allocated): a guard against a
+  // stream that jumps between epochs.
+  double max_span_s = 2.0e5;
+};
+
+struct ClockCheckResult {
+  bool checked = false;        // enough moves and IMU motion to tell
+  std::string not_checked_why;  // when !checked
+  bool offset_found = false;
+  // IMU stamp minus gimbal time of the same instant: positive = IMU stamps later. Shift the IMU
+  // stamps by -offset_s (--imu-time-offset) to fix it.
+  double offset_s = 0.0;
+  double explained_at_zero = 0.0;  // share of the IMU motion inside the moves, unshifted
+  double explained_at_offset = 0.0;
+  double best_shift_s = 0.0;  // the shift found, also when too small to matter
+  double gain = 0.0;          // motion share gained inside the unpadded moves by that shift
+  // When offset_found: "IMU stamps are 5.00 s later than the gimbal's: clocks not synchronized;
+  // pass <fix_option> -5.00" (fix_option given to message()).
+  std::string message(const std::string& fix_option) const;
+};
+
+class ClockCheck {
+ public:
+  explicit ClockCheck(const ClockCheckOptions& options = {});
+
+  void add_command(const GimbalEvent& event);
+  void add_sample(const ImuSample& sample);
+  void reset();
+
+  ClockCheckResult result() const;
+
+ private:
+  struct Bin {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    std::uint64_t n = 0;
+  };
+
+  ClockCheckOptions options_;
+  std::vector<GimbalEvent> commands_;
+  bool have_origin_ = false;
+  double origin_s_ = 0.0;  // bins count from the first IMU stamp
+  std::map<std::int64_t, Bin> bins_;
+  std::map<std::int64_t, Bin>::iterator last_bin_;
+  std::uint64_t bins_refused_ = 0;
+};
+
+}  // namespace core
+}  // namespace accel_intrinsics

@@ -1,0 +1,918 @@
+#include "accel_intrinsics/core/run/calibration_run.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+namespace accel_intrinsics {
+namespace core {
+namespace {
+
+std::string position_label(Phase phase, std::uint32_t step, int approach) {
+  std::ostringstream s;
+  s << "phase " << phase_name(phase) << " step " << step;
+  if (approach < 0) s << " (return sweep)";
+  return s.str();
+}
+
+void add_counters(const AssemblerCounters& from, AssemblerCounters* to) {
+  to->samples_used += from.samples_used;
+  to->dropped_outside_dwell += from.dropped_outside_dwell;
+  to->dropped_settle_discard += from.dropped_settle_discard;
+  to->dropped_non_finite += from.dropped_non_finite;
+  to->dropped_backwards += from.dropped_backwards;
+  to->duplicates += from.duplicates;
+  to->dropped_late += from.dropped_late;
+  to->commands += from.commands;
+  for (std::size_t c = 0; c < kChannelCount; ++c) {
+    to->channel_used[c] += from.channel_used[c];
+    to->channel_dropped[c] += from.channel_dropped[c];
+  }
+  to->commands_out_of_order += from.commands_out_of_order;
+  if (to->last_warning.empty()) to->last_warning = from.last_warning;
+}
+
+}  // namespace
+
+const char* run_state_name(RunState state) {
+  switch (state) {
+    case RunState::Idle: return "idle";
+    case RunState::Running: return "running";
+    case RunState::Dwelling: return "dwelling";
+    case RunState::WaitingForResume: return "waiting for resume";
+    case RunState::Fitting: return "fitting";
+    case RunState::Done: return "done";
+    case RunState::FitFailed: return "fit failed";
+    case RunState::Aborted: return "aborted";
+  }
+  return "?";
+}
+
+const char* run_event_name(RunEvent event) {
+  switch (event) {
+    case RunEvent::Reset: return "reset";
+    case RunEvent::RestoredAborted: return "restored aborted";
+    case RunEvent::Moving: return "moving";
+    case RunEvent::Settled: return "settled";
+    case RunEvent::DoneReceived: return "done received";
+    case RunEvent::DoneDiscarded: return "done discarded";
+    case RunEvent::FitStarted: return "fit started";
+    case RunEvent::ClockMismatch: return "clock mismatch";
+    case RunEvent::FitPublished: return "fit published";
+    case RunEvent::FitFailed: return "fit failed";
+    case RunEvent::FitWithheld: return "fit withheld";
+    case RunEvent::FaultRetried: return "fault retried";
+    case RunEvent::FaultAborted: return "fault aborted";
+    case RunEvent::ControllerFault: return "controller fault";
+    case RunEvent::ResumeRequested: return "resume requested";
+    case RunEvent::ResumeConfirmed: return "resume confirmed";
+    case RunEvent::ResumeRefused: return "resume refused";
+  }
+  return "?";
+}
+
+const std::vector<RunTransition>& run_transition_table() {
+  using S = RunState;
+  using E = RunEvent;
+  static const std::vector<RunTransition> table = [] {
+    std::vector<RunTransition> t;
+    const auto rows = [&t](std::initializer_list<S> from, E event, S to, bool collecting = false) {
+      for (S f : from) t.push_back({f, event, to, collecting});
+    };
+    const std::initializer_list<S> all = {S::Idle,    S::Running, S::Dwelling, S::WaitingForResume,
+                                          S::Fitting, S::Done,    S::FitFailed, S::Aborted};
+    const std::initializer_list<S> collecting = {S::Idle, S::Running, S::Dwelling};
+    rows(all, E::Reset, S::Idle);
+    rows({S::Idle}, E::RestoredAborted, S::Aborted);
+    // Commands move a collecting run; in the other states they only feed the assembler.
+    rows(collecting, E::Moving, S::Running);
+    rows(collecting, E::Settled, S::Dwelling);
+    rows(collecting, E::DoneReceived, S::Fitting);
+    // Aborted by the controller meanwhile: no fit, the run is where its commands say.
+    rows({S::Fitting}, E::DoneDiscarded, S::Running, true);
+    // Idle: a restored complete run; FitFailed: fitted again after a later DONE.
+    rows({S::Idle, S::Fitting, S::FitFailed}, E::FitStarted, S::Fitting);
+    rows({S::Idle, S::Fitting, S::FitFailed}, E::ClockMismatch, S::FitFailed);
+    rows({S::Fitting}, E::FitPublished, S::Done);
+    // Done: a second fit of the run (after a retried position) failed.
+    rows({S::Fitting, S::Done}, E::FitFailed, S::FitFailed);
+    rows({S::Fitting}, E::FitWithheld, S::Running, true);
+    // A result stays through a retry (the rewound positions are fitted again); an abort ends it.
+    rows({S::Idle, S::Running, S::Dwelling, S::Fitting, S::FitFailed}, E::FaultRetried,
+         S::WaitingForResume);
+    rows({S::Idle, S::Running, S::Dwelling, S::WaitingForResume, S::Fitting, S::Done, S::FitFailed},
+         E::FaultAborted, S::Aborted);
+    rows({S::Running, S::Dwelling, S::Fitting, S::FitFailed}, E::ControllerFault,
+         S::WaitingForResume);
+    rows({S::Idle, S::Running, S::Dwelling, S::Fitting, S::FitFailed}, E::ResumeRequested,
+         S::WaitingForResume);
+    rows({S::WaitingForResume}, E::ResumeConfirmed, S::Running, true);
+    rows({S::Idle, S::Running, S::Dwelling, S::WaitingForResume, S::Fitting, S::FitFailed},
+         E::ResumeRefused, S::Aborted);
+    return t;
+  }();
+  return table;
+}
+
+const RunTransition* run_transition(RunState from, RunEvent event) {
+  for (const RunTransition& t : run_transition_table()) {
+    if (t.from == from && t.event == event) return &t;
+  }
+  return nullptr;
+}
+
+void CalibrationRun::apply(RunEvent event) {
+  if (event == RunEvent::Reset) events_.clear();
+  events_.push_back(event);
+  const RunTransition* t = run_transition(state_, event);
+  if (t == nullptr) return;  // ignored in this state (run_transition_table())
+  if (!t->collecting) {
+    state_ = t->to;
+  } else if (done_pending_ || fitting_) {
+    state_ = RunState::Fitting;  // a DONE waits for its window, or a fit still runs
+  } else if (commands_in_run_ == 0) {
+    state_ = RunState::Idle;
+  } else {
+    state_ = live_in_dwell_ ? RunState::Dwelling : RunState::Running;
+  }
+}
+
+CalibrationRun::CalibrationRun(const RunOptions& options)
+    : options_(options), assembler_(options.assembler), clock_check_(options.clock) {
+  connect_assembler();
+}
+
+void CalibrationRun::connect_assembler() {
+  moves_.clear();
+  // Events and samples in stamp order: the moves (timing lag) when asked, the long rest always.
+  const bool record_moves = options_.record_moves;
+  assembler_.set_release_observers(
+      [this, record_moves](const GimbalEvent& e) {
+        if (record_moves) moves_.add_command(e);
+        long_rest_.add_command(e);
+      },
+      [this, record_moves](const ImuSample& s) {
+        if (record_moves) moves_.add_sample(s);
+        long_rest_.add_sample(s);
+      });
+}
+
+std::optional<NoiseModel> CalibrationRun::noise_model(std::string* why) const {
+  try {
+    return long_rest_.noise_model(table_, 0.0);
+  } catch (const std::invalid_argument& e) {
+    if (why != nullptr) *why = e.what();
+    return std::nullopt;
+  }
+}
+
+void CalibrationRun::log(RunAction::Level level, const std::string& text) {
+  RunAction a;
+  a.kind = RunAction::Kind::Log;
+  a.level = level;
+  a.text = text;
+  actions_.push_back(std::move(a));
+}
+
+void CalibrationRun::emit(RunAction::Kind kind) {
+  RunAction a;
+  a.kind = kind;
+  actions_.push_back(std::move(a));
+}
+
+void CalibrationRun::log_repeating(const std::string& text) {
+  log(RunAction::Level::Warn, text);
+  actions_.back().repeating = true;
+}
+
+RunActions CalibrationRun::take_actions() {
+  RunActions out;
+  out.swap(actions_);
+  return out;
+}
+
+void CalibrationRun::emit_fit() {
+  if (options_.check_clock) {
+    ClockCheckResult clock = clock_check_.result();
+    if (clock.offset_found) {
+      // Name the offset to set in total, on top of the one already applied.
+      clock.offset_s -= options_.imu_time_offset_s;
+      fit_error_ = clock.message("imu_time_offset_s");
+      log(RunAction::Level::Error, "no fit: " + fit_error_);
+      apply(RunEvent::ClockMismatch);
+      return;
+    }
+  }
+  RunAction a;
+  a.kind = RunAction::Kind::FitNow;
+  a.table = table_;
+  if (options_.record_moves) {
+    a.move_commands = moves_.commands();
+    a.move_samples = moves_.samples();
+  }
+  a.counters = counters();
+  std::string why_not;
+  a.noise_model = noise_model(&why_not);
+  if (a.noise_model) {
+    std::ostringstream m;
+    m << "noise model " << a.noise_model->kind() << " from " << a.noise_model->source << " ("
+      << a.noise_model->rest_samples << " samples)";
+    if (long_rest_.samples_dropped() > 0)
+      m << "; " << long_rest_.samples_dropped() << " later samples of the rest not kept";
+    log(RunAction::Level::Info, m.str());
+  } else if (!why_not.empty()) {
+    log(RunAction::Level::Warn, "no noise model from the long rest (white weights): " + why_not);
+  }
+  a.fit_ticket = ++fit_ticket_;
+  fitting_ = true;
+  apply(RunEvent::FitStarted);
+  actions_.push_back(std::move(a));
+}
+
+AssemblerCounters CalibrationRun::counters() const {
+  AssemblerCounters c = assembler_.counters();
+  add_counters(counters_before_, &c);
+  return c;
+}
+
+// ---- Inputs ------------------------------------------------------------------------------------
+
+RunActions CalibrationRun::on_command(const GimbalEvent& event) {
+  ++commands_received_;
+  ++commands_in_run_;
+  const bool run_start =
+      event.state == GimbalState::Moving && event.phase == Phase::X && event.step == 0;
+  if (resume_pending_) {
+    // First command after a restart from a checkpoint: a fresh run, or the one to continue.
+    if (run_start) {
+      resume_pending_ = false;
+      log(RunAction::Level::Warn, "a new run starts; the checkpoint of " +
+                                      std::to_string(table_.rows.size()) + " dwells is discarded");
+      for (RunAction& a : reset("a new run starts over the checkpoint")) {
+        actions_.push_back(std::move(a));
+      }
+      ++commands_in_run_;
+    } else {
+      begin_resume("calibration node restarted from its checkpoint");
+    }
+  }
+  const bool previous_run_over = done_pending_ || assembler_.done() || has_result() || fitting_ ||
+                                 !fit_error_.empty() || !fault_.empty();
+  if (run_start && previous_run_over && !rewind_pending()) {
+    if (done_pending_ && fault_.empty()) {
+      // The previous run's DONE is still in the reorder window: finish it first.
+      accept_rows(assembler_.flush());
+      done_pending_ = false;
+      emit_fit();
+    }
+    // The previous run's fit (just handed out, or still running) goes out all the same.
+    if (fitting_) superseded_fit_ticket_ = fit_ticket_;
+    RunActions after_reset = reset("a new run starts (MOVING to phase x step 0 after DONE)");
+    for (RunAction& a : after_reset) actions_.push_back(std::move(a));
+    ++commands_in_run_;
+  }
+  clock_check_.add_command(event);
+  if (!std::isfinite(table_.time_origin_s)) {
+    table_.time_origin_s = event.stamp_s;  // t0 of the drift term: the first command of the run
+    steps_seen_ = event.steps;
+    emit(RunAction::Kind::CheckpointState);
+  }
+  steps_seen_ = event.steps;
+  if (event.state != GimbalState::Done) {  // a DONE of an abort names the position it ended
+    have_last_event_ = true;
+    last_event_ = event;
+  }
+  // Live view (arrival order) for the IMU watchdog, and the announced dwells (stamp order).
+  live_in_dwell_ = event.state == GimbalState::Settled;
+  if (live_in_dwell_) live_dwell_ = event;
+  if (!announced_.empty() && !std::isfinite(announced_.back().end_s)) {
+    announced_.back().end_s = event.stamp_s;
+  }
+  if (event.state == GimbalState::Settled) {
+    announced_.push_back(
+        {event.phase, event.step, event.stamp_s, std::numeric_limits<double>::infinity(), false});
+  }
+  if (event.state == GimbalState::Done) {
+    // A DONE inside an open blackout belongs to the protocol before the rewind: drop it.
+    for (const Blackout& b : blackouts_) {
+      if (event.stamp_s >= b.begin_s && event.stamp_s < b.end_s) {
+        std::ostringstream s;
+        s.setf(std::ios::fixed);
+        s.precision(3);
+        s << "DONE at " << event.stamp_s << " s ignored (waiting for the rewound protocol)";
+        log(RunAction::Level::Info, s.str());
+        apply(RunEvent::Moving);  // not in a dwell any more
+        return take_actions();
+      }
+    }
+  }
+  accept_rows(source_.add_command(event));
+  if (event.state == GimbalState::Done) {
+    done_pending_ = true;
+    done_stamp_s_ = event.stamp_s;
+    log(RunAction::Level::Info, "DONE received, fitting after the reorder window");
+    apply(RunEvent::DoneReceived);
+  } else {
+    apply(event.state == GimbalState::Settled ? RunEvent::Settled : RunEvent::Moving);
+  }
+  warn_on_new_drops();
+  return take_actions();
+}
+
+RunActions CalibrationRun::on_sample(const ImuSample& received) {
+  ImuSample sample = received;
+  sample.stamp_s += options_.imu_time_offset_s;
+  if (sample.stamp_s > newest_sample_stamp_s_) newest_sample_stamp_s_ = sample.stamp_s;
+  const CompletedRows rows = source_.add_sample(sample);
+  clock_check_.add_sample(sample);
+  if (!rows.empty()) accept_rows(rows);
+  const AssemblerCounters& c = assembler_.counters();
+  if (c.dropped_non_finite != warned_.dropped_non_finite ||
+      c.dropped_backwards != warned_.dropped_backwards || c.dropped_late != warned_.dropped_late) {
+    warn_on_new_drops();
+  }
+  return take_actions();
+}
+
+RunActions CalibrationRun::on_channel_sample(const ChannelSample& received) {
+  ChannelSample reading = received;
+  reading.stamp_s += options_.imu_time_offset_s;  // the IMU's clock
+  accept_rows(source_.add_channel_sample(reading));
+  return take_actions();
+}
+
+RunActions CalibrationRun::on_controller_state(const std::string& state,
+                                               const std::string& message) {
+  // A running controller never goes back to IDLE by itself: a new process has taken its place
+  // (respawned after a crash). The run it drove is still open here: continue it (at tick()).
+  const bool was_running = controller_state_ == "MOVING" || controller_state_ == "SETTLED" ||
+                           controller_state_ == "REMOUNT";
+  if (state == "IDLE" && was_running && !done_pending_ && !assembler_.done() && !has_result() &&
+      fault_.empty() && controller_abort_.empty()) {
+    controller_restarted_ = true;
+    log(RunAction::Level::Warn, "the gimbal controller restarted in the middle of the run");
+  }
+  controller_state_ = state;
+  if (state == "ABORTED") {
+    // "ABORTED: <reason>"
+    const std::size_t colon = message.find(": ");
+    const std::string reason = colon == std::string::npos ? message : message.substr(colon + 2);
+    const bool ours = !fault_.empty() || pending_ == Pending::Abort;  // we asked for it
+    if (reason != controller_abort_ && !ours && options_.retry_on_fault && have_last_event_ &&
+        !controller_fault_pending_ && !has_result() && !rewind_pending() && !fitting_) {
+      // A fault of the gimbal itself at the position of the latest command: measure it again
+      // (at tick(), after the reorder window, so that the dwells before it are complete).
+      controller_fault_pending_ = true;
+      controller_fault_.reason = "the gimbal controller aborted: " + reason;
+      controller_fault_.phase = last_event_.phase;
+      controller_fault_.step = last_event_.step;
+      controller_fault_.in_dwell = last_event_.state == GimbalState::Settled;
+      controller_fault_.stamp_s = last_event_.stamp_s;
+      log(RunAction::Level::Warn, controller_fault_.reason);
+      apply(RunEvent::ControllerFault);
+    } else if (reason != controller_abort_ && !controller_fault_pending_) {
+      controller_abort_ = reason;
+      if (fault_.empty()) log(RunAction::Level::Error, "the gimbal controller aborted: " + reason);
+    }
+  } else if (state == "STARTING" || state == "MOVING" || state == "SETTLED" || state == "REMOUNT") {
+    controller_abort_.clear();
+  }
+  return take_actions();
+}
+
+RunActions CalibrationRun::on_streams_idle() {
+  if (!done_pending_) return take_actions();
+  log(RunAction::Level::Info, "no messages or clock ticks since DONE: fitting now");
+  return tick(done_stamp_s_ + options_.assembler.reorder_window_s);
+}
+
+void CalibrationRun::retry_controller_fault() {
+  controller_fault_pending_ = false;
+  const ControllerFault f = controller_fault_;
+  // Everything before the faulted position is complete: its rows go to the table before the
+  // assembler restarts. A dwell the fault cut short is measured again (blackout from its
+  // SETTLED); after a fault in a move, from the MOVING that ended the previous dwell.
+  if (f.in_dwell) {
+    accept_rows(assembler_.flush_until(f.stamp_s - 1e-9));
+  } else {
+    accept_rows(assembler_.flush_until(f.stamp_s));
+  }
+  const int approach = approach_of_next_row(f.phase, f.step);
+  // Retried (rewind at the position) or, after max_retries, the run is aborted with the
+  // controller's words.
+  raise_fault(f.reason + " at " + position_label(f.phase, f.step, approach), f.phase, f.step,
+              approach, f.stamp_s);
+}
+
+RunActions CalibrationRun::tick(double now_s) {
+  if (controller_fault_pending_ &&
+      now_s >= controller_fault_.stamp_s + options_.assembler.reorder_window_s) {
+    retry_controller_fault();
+  }
+  if (controller_restarted_ && !rewind_pending()) {
+    controller_restarted_ = false;
+    begin_resume("the gimbal controller restarted mid-run");
+  }
+  const bool idle_stand = options_.resume_idle_controller && controller_state_ == "IDLE";
+  if (resume_pending_ && (controller_state_ == "DONE" || idle_stand)) {
+    // No gimbal command since the restart and the controller finished the protocol meanwhile
+    // (this node died in the last dwells): resume after a grace period. An idle controller
+    // (a fresh stand over an old checkpoint) is started from here only with
+    // resume_idle_controller (the whole stand PC restarted; a lab's unattended stand).
+    if (std::isnan(resume_deadline_s_)) {
+      resume_deadline_s_ = now_s + std::max(2.0, 2.0 * options_.assembler.reorder_window_s);
+    } else if (now_s >= resume_deadline_s_) {
+      begin_resume(idle_stand ? "stand restarted (calibration node and an idle gimbal "
+                                "controller) from its checkpoint"
+                              : "calibration node restarted from its checkpoint");
+    }
+  }
+  if (restore_done_) {
+    // The checkpoint holds a finished run: its result again.
+    restore_done_ = false;
+    emit_fit();
+  }
+  const double window = options_.assembler.reorder_window_s;
+  if (done_pending_ && now_s >= done_stamp_s_ + window && !controller_fault_pending_) {
+    accept_rows(assembler_.flush());
+    done_pending_ = false;
+    warn_on_new_drops();
+    check_watchdogs(now_s);
+    if (aborted()) {
+      // An aborted run gives no certificate, whatever it has measured.
+      log(RunAction::Level::Error, "the run was aborted; no fit: " + missing_message());
+      apply(RunEvent::DoneDiscarded);
+    } else if (!rewind_pending()) {
+      emit_fit();
+    } else {
+      log(RunAction::Level::Warn, "DONE but a position is to be measured again; no fit yet");
+    }
+  } else if (now_s > window) {
+    accept_rows(assembler_.flush_until(now_s - window));
+    warn_on_new_drops();
+  }
+  check_watchdogs(now_s);
+  // A due request to the gimbal controller.
+  if (pending_ != Pending::None && now_s >= request_after_s_) {
+    RunAction a;
+    a.kind = pending_ == Pending::Resume ? RunAction::Kind::ResumeAt : RunAction::Kind::Abort;
+    a.request = request_;
+    a.request.run_generation = run_generation_;
+    pending_ = Pending::None;
+    actions_.push_back(std::move(a));
+  }
+  return take_actions();
+}
+
+void CalibrationRun::ask_again(Pending kind, const ControllerRequest& request, double now_s) {
+  // The controller is not there (yet): ask again in a moment (unless a newer request replaced
+  // this one meanwhile).
+  if (!unreached_warned_) {
+    log(RunAction::Level::Warn, std::string("gimbal_controller/") +
+                                    (kind == Pending::Resume ? "resume" : "abort") +
+                                    " not available; retrying");
+    unreached_warned_ = true;
+  }
+  if (pending_ == Pending::None) {
+    pending_ = kind;
+    request_ = request;
+    if (kind == Pending::Resume) apply(RunEvent::ResumeRequested);
+  }
+  request_after_s_ = now_s + options_.request_retry_s;
+}
+
+RunActions CalibrationRun::on_resume_reply(const ControllerRequest& request, bool reached,
+                                           bool success, const std::string& message,
+                                           double moving_stamp_s, double now_s) {
+  if (request.run_generation != run_generation_) return take_actions();  // of a reset run
+  if (!reached) {
+    ask_again(Pending::Resume, request, now_s);
+    return take_actions();
+  }
+  unreached_warned_ = false;
+  if (!success || !(std::isfinite(moving_stamp_s) && moving_stamp_s > 0.0)) {
+    fault_ = "the gimbal controller refused to resume at " +
+             position_label(request.phase, request.step, request.approach) +
+             (request.after ? " (after)" : "") + ": " + message;
+    log(RunAction::Level::Error, fault_);
+    blackouts_.clear();
+    apply(RunEvent::ResumeRefused);
+    emit(RunAction::Kind::CheckpointState);
+    return take_actions();
+  }
+  for (Blackout& b : blackouts_) {
+    if (!std::isfinite(b.end_s)) b.end_s = moving_stamp_s;
+  }
+  log(RunAction::Level::Warn, "gimbal controller: " + message);
+  if (!rewind_pending() && !controller_fault_pending_) apply(RunEvent::ResumeConfirmed);
+  return take_actions();
+}
+
+RunActions CalibrationRun::on_abort_reply(const ControllerRequest& request, bool reached,
+                                          const std::string& message, double now_s) {
+  if (request.run_generation != run_generation_) return take_actions();  // of a reset run
+  if (!reached) {
+    ask_again(Pending::Abort, request, now_s);
+    return take_actions();
+  }
+  unreached_warned_ = false;
+  log(RunAction::Level::Error, "asked the gimbal controller to abort: " + message);
+  return take_actions();
+}
+
+bool CalibrationRun::fit_may_publish(std::uint64_t fit_ticket) const {
+  if (fit_ticket != 0 && fit_ticket == superseded_fit_ticket_) return true;
+  return fit_ticket == fit_ticket_ && fitting_ && fault_.empty() && !rewind_pending();
+}
+
+RunActions CalibrationRun::on_fit_finished(std::uint64_t fit_ticket, bool published,
+                                           const std::string& error) {
+  if (fit_ticket != fit_ticket_ || !fitting_) return take_actions();  // reset or superseded
+  fitting_ = false;
+  if (published) {
+    fit_error_.clear();
+    apply(RunEvent::FitPublished);
+    emit(RunAction::Kind::CheckpointState);
+  } else if (!error.empty()) {
+    fit_error_ = error;
+    apply(RunEvent::FitFailed);
+    log(RunAction::Level::Error, "no result after DONE: " + missing_message());
+  } else {
+    apply(RunEvent::FitWithheld);
+    // A watchdog fired after the fit: no certificate from this one.
+    log(RunAction::Level::Warn, "a fault came while the fit ran; its result is not published");
+  }
+  return take_actions();
+}
+
+RunActions CalibrationRun::restore(const PositionTable& table, const CheckpointState& state) {
+  if (state_ != RunState::Idle || commands_received_ > 0 || restored_) {
+    throw std::logic_error(
+        std::string("CalibrationRun::restore: only a fresh run is restored (this one is ") +
+        run_state_name(CalibrationRun::state()) + ")");
+  }
+  table_ = table;
+  table_.time_origin_s = state.time_origin_s;
+  steps_seen_ = state.steps;
+  restored_ = true;
+  fault_ = state.fault;
+  if (!fault_.empty()) {
+    log(RunAction::Level::Warn, "resume: the checkpointed run was aborted (" + fault_ + ")");
+    apply(RunEvent::RestoredAborted);
+  } else if (state.done) {
+    restore_done_ = true;
+  } else {
+    resume_pending_ = true;  // rewind the controller when it shows up
+  }
+  std::ostringstream s;
+  s.precision(17);
+  s << "resume: restored " << table_.rows.size() << " dwells (N = " << state.steps
+    << ", t0 = " << state.time_origin_s << " s)" << (state.done ? ", run complete" : "");
+  log(RunAction::Level::Warn, s.str());
+  return take_actions();
+}
+
+RunActions CalibrationRun::reset(const std::string& reason) {
+  const std::size_t dwells = table_.rows.size();
+  assembler_.reset();
+  clock_check_.reset();
+  long_rest_.clear();
+  connect_assembler();
+  done_pending_ = false;
+  fitting_ = false;
+  ++fit_ticket_;  // a fit still running belongs to the discarded run
+  fit_error_.clear();
+  warned_ = AssemblerCounters();
+  counters_before_ = AssemblerCounters();
+  commands_rejected_ = 0;
+  commands_in_run_ = 0;
+  ++run_generation_;
+  table_ = PositionTable();
+  rows_discarded_ = 0;
+  restored_ = false;
+  resume_pending_ = false;
+  resume_deadline_s_ = std::numeric_limits<double>::quiet_NaN();
+  restore_done_ = false;
+  controller_restarted_ = false;
+  blackouts_.clear();
+  pending_ = Pending::None;
+  request_ = ControllerRequest();
+  fault_.clear();
+  controller_abort_.clear();
+  controller_fault_pending_ = false;
+  have_last_event_ = false;
+  last_fault_.clear();
+  retries_.clear();
+  retries_total_ = 0;
+  live_in_dwell_ = false;
+  announced_.clear();
+  newest_sample_stamp_s_ = -std::numeric_limits<double>::infinity();
+  apply(RunEvent::Reset);
+  emit(RunAction::Kind::ClearCheckpoint);
+  log(RunAction::Level::Info,
+      "reset (" + reason + "); discarded " + std::to_string(dwells) + " dwells");
+  return take_actions();
+}
+
+// ---- Dwells, faults, resume ---------------------------------------------------------------------
+
+void CalibrationRun::accept_rows(const CompletedRows& rows) {
+  // The assembler has returned: a row that raises a fault may restart it.
+  for (const DwellRecord& row : rows) accept_row(row);
+}
+
+void CalibrationRun::accept_row(const DwellRecord& row) {
+  for (Announced& a : announced_) {
+    if (a.begin_s + options_.assembler.settle_discard_s == row.t_start_s) a.recorded = true;
+  }
+  const std::string label = std::string(phase_name(row.phase)) + " " +
+                            std::to_string(row.step + 1) + "/" + std::to_string(steps_seen_);
+  if (in_blackout(row.t_start_s, row.t_end_s)) {
+    ++rows_discarded_;
+    log(RunAction::Level::Info,
+        "dwell " + label + (is_closing_step(row.step, steps_seen_) ? " (closing position)" : "") +
+            " measured before the rewind: discarded");
+    return;
+  }
+  if (!fault_.empty()) return;
+  if (options_.min_samples_per_dwell > 0 && row.n < options_.min_samples_per_dwell) {
+    const int approach = approach_of_next_row(row.phase, row.step);
+    std::ostringstream what;
+    what << "dwell " << position_label(row.phase, row.step, approach) << " has " << row.n
+         << " samples (fewer than min_samples_per_dwell = " << options_.min_samples_per_dwell
+         << ")";
+    raise_fault(what.str(), row.phase, row.step, approach,
+                row.t_start_s - options_.assembler.settle_discard_s);
+    return;
+  }
+  table_.rows.push_back(row);
+  RunAction a;
+  a.kind = RunAction::Kind::DwellAccepted;
+  a.row = row;
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(5);
+  s << "dwell " << label
+    << (is_closing_step(row.step, steps_seen_) ? " (closing position, 360 deg)" : "")
+    << ": n = " << row.n << ", mean (" << row.mean(0) << ", " << row.mean(1) << ", " << row.mean(2)
+    << ") m/s^2";
+  a.text = s.str();
+  actions_.push_back(std::move(a));
+}
+
+int CalibrationRun::approach_of_next_row(Phase phase, std::uint32_t step) const {
+  return approach_of_appended_row(table_, phase, step_angle(step, std::max(steps(), 1u)));
+}
+
+void CalibrationRun::raise_fault(const std::string& what, Phase phase, std::uint32_t step,
+                                 int approach, double dwell_start_s) {
+  last_fault_ = what;
+  std::uint32_t& tries = retries_[std::make_tuple(index(phase), step, approach)];
+  if (options_.retry_on_fault && tries < options_.max_retries) {
+    ++tries;
+    ++retries_total_;
+    log(RunAction::Level::Warn, what + "; measuring it again (retry " + std::to_string(tries) +
+                                    " of " + std::to_string(options_.max_retries) + ")");
+    Blackout b;
+    b.begin_s = dwell_start_s;
+    blackouts_.push_back(b);
+    pending_ = Pending::Resume;
+    request_ = ControllerRequest();
+    request_.phase = phase;
+    request_.step = step;
+    request_.approach = approach;
+    request_.after = false;
+    request_.reason = what;
+    request_after_s_ = -std::numeric_limits<double>::infinity();
+    done_pending_ = false;
+    restart_assembler();
+    apply(RunEvent::FaultRetried);
+    return;
+  }
+  std::ostringstream reason;
+  reason << what;
+  if (options_.retry_on_fault) {
+    reason << "; gave up after " << tries << (tries == 1 ? " retry" : " retries")
+           << " (max_retries)";
+  } else {
+    reason << " (on_fault: abort)";
+  }
+  fault_ = reason.str();
+  log(RunAction::Level::Error, "run aborted: " + fault_);
+  pending_ = Pending::Abort;
+  request_ = ControllerRequest();
+  request_.reason = fault_;
+  request_after_s_ = -std::numeric_limits<double>::infinity();
+  apply(RunEvent::FaultAborted);
+  emit(RunAction::Kind::CheckpointState);
+}
+
+void CalibrationRun::restart_assembler() {
+  // The rewound protocol starts on a fresh assembler: events of the abandoned stretch still
+  // buffered are dropped with the old one; its counters carry over.
+  add_counters(assembler_.counters(), &counters_before_);
+  if (!assembler_.counters().last_warning.empty()) {  // the newest warning wins
+    counters_before_.last_warning = assembler_.counters().last_warning;
+  }
+  assembler_.reset();
+  connect_assembler();  // also clears the recorded moves: the lag uses those after the rewind
+  // A fault before any row was accepted is in the first dwell (or before it): the rewound
+  // protocol measures the long rest again. After that the rest is an accepted row: keep it.
+  if (table_.rows.empty()) long_rest_.clear();
+  warned_ = AssemblerCounters();
+  live_in_dwell_ = false;
+  announced_.clear();
+}
+
+void CalibrationRun::begin_resume(const std::string& cause) {
+  // Have the controller go to the position after the last recorded dwell (or to the first one),
+  // and discard everything measured before its MOVING (a dwell cut short, samples taken while
+  // nobody drove the gimbal).
+  resume_pending_ = false;
+  pending_ = Pending::Resume;
+  request_ = ControllerRequest();
+  request_after_s_ = -std::numeric_limits<double>::infinity();
+  blackouts_.push_back(Blackout());  // everything until the rewound MOVING
+  moves_.clear();                    // the lag is estimated on the moves after it
+  // The rewound protocol begins with its long rest again when no row was accepted.
+  if (table_.rows.empty()) long_rest_.clear();
+  apply(RunEvent::ResumeRequested);
+  if (!table_.rows.empty()) {
+    const DwellRecord& last = table_.rows.back();
+    request_.phase = last.phase;
+    request_.step = last.step;
+    request_.approach = dwell_geometries(table_).back().approach;
+    request_.after = true;
+    request_.reason = cause;
+    log(RunAction::Level::Warn,
+        cause + ": resuming after " + position_label(last.phase, last.step, request_.approach) +
+            " (" + std::to_string(table_.rows.size()) + " dwells recorded)");
+  } else {
+    request_.reason = cause + ", no dwell recorded";
+    log(RunAction::Level::Warn, cause + ": resuming from the first position (no dwell recorded)");
+  }
+}
+
+bool CalibrationRun::rewind_pending() const {
+  if (pending_ != Pending::None) return true;
+  for (const Blackout& b : blackouts_) {
+    if (!std::isfinite(b.end_s)) return true;
+  }
+  return false;
+}
+
+bool CalibrationRun::in_blackout(double t_start_s, double t_end_s) const {
+  for (const Blackout& b : blackouts_) {
+    if (t_end_s > b.begin_s && t_start_s < b.end_s) return true;
+  }
+  return false;
+}
+
+void CalibrationRun::check_watchdogs(double now_s) {
+  if (!fault_.empty() || rewind_pending()) return;
+  // A dwell that ended without a single sample (the assembler records nothing for it).
+  const double released = now_s - options_.assembler.reorder_window_s;
+  for (const Announced& a : announced_) {
+    if (a.recorded || !std::isfinite(a.end_s) || a.end_s > released) continue;
+    if (in_blackout(a.begin_s, a.end_s)) continue;
+    if (options_.min_samples_per_dwell > 0 || options_.imu_timeout_s > 0.0) {
+      const int approach = approach_of_next_row(a.phase, a.step);
+      const Announced copy = a;
+      announced_.clear();
+      raise_fault(
+          "dwell " + position_label(copy.phase, copy.step, approach) + " has no samples at all",
+          copy.phase, copy.step, approach, copy.begin_s);
+      return;
+    }
+  }
+  while (!announced_.empty() &&
+         (announced_.front().recorded ||
+          (std::isfinite(announced_.front().end_s) && announced_.front().end_s <= released))) {
+    announced_.erase(announced_.begin());
+  }
+  // The IMU stream stopped during a dwell.
+  if (options_.imu_timeout_s > 0.0 && live_in_dwell_) {
+    const double dwell_start = live_dwell_.stamp_s;
+    const double silent = now_s - std::max(dwell_start, newest_sample_stamp_s_);
+    if (silent > options_.imu_timeout_s && !in_blackout(dwell_start, dwell_start + 1e-9)) {
+      const Phase phase = live_dwell_.phase;
+      const std::uint32_t step = live_dwell_.step;
+      const int approach = approach_of_next_row(phase, step);
+      std::ostringstream what;
+      what.setf(std::ios::fixed);
+      what.precision(1);
+      what << "IMU stream stopped: no samples for " << silent << " s during dwell "
+           << position_label(phase, step, approach)
+           << " (imu_timeout_s = " << options_.imu_timeout_s << ")";
+      live_in_dwell_ = false;
+      // Dwells before this one are complete: process them before the assembler restarts.
+      accept_rows(assembler_.flush_until(dwell_start - 1e-9));
+      raise_fault(what.str(), phase, step, approach, dwell_start);
+    }
+  }
+}
+
+void CalibrationRun::warn_on_new_drops() {
+  const AssemblerCounters& c = assembler_.counters();
+  if (c.dropped_non_finite > warned_.dropped_non_finite) {
+    log_repeating("dropped IMU samples with NaN or infinite values (" +
+                  std::to_string(c.dropped_non_finite) + " so far)");
+  }
+  if (c.dropped_backwards > warned_.dropped_backwards) {
+    log_repeating("dropped IMU samples whose stamp went backwards (" +
+                  std::to_string(c.dropped_backwards) + " so far)");
+  }
+  if (c.dropped_late > warned_.dropped_late) {
+    log_repeating("dropped messages that arrived after the reorder window (" +
+                  std::to_string(c.dropped_late) + " so far; raise reorder_window_s?)");
+  }
+  if (c.commands_out_of_order > warned_.commands_out_of_order) {
+    log_repeating("gimbal command out of protocol order (" +
+                  std::to_string(c.commands_out_of_order) + " so far): " + c.last_warning);
+  }
+  warned_ = c;
+}
+
+// ---- Views
+// ---------------------------------------------------------------------------------------
+
+RunState CalibrationRun::state() const {
+  if (state_ != RunState::Done && !controller_abort_.empty()) return RunState::Aborted;
+  return state_;
+}
+
+RunStatus CalibrationRun::status(double now_s) const {
+  RunStatus s;
+  s.state = state();
+  s.dwells_per_phase = positions_per_phase(table_);
+  s.steps = steps();
+  s.counters = counters();
+  s.commands_received = commands_received_;
+  s.commands_rejected = commands_rejected_;
+  s.fault = !fault_.empty() ? fault_ : controller_abort_;
+  s.last_fault = last_fault_;
+  s.fit_error = fit_error_;
+  s.retries = retries_total_;
+  s.dwells_discarded = rows_discarded_;
+  s.restored = restored_;
+  s.in_dwell = assembler_.current_dwell(&s.dwell_phase, &s.dwell_step, &s.dwell_samples);
+  s.imu_silent =
+      options_.imu_timeout_s > 0.0 && live_in_dwell_ &&
+      now_s - std::max(live_dwell_.stamp_s, newest_sample_stamp_s_) > options_.imu_timeout_s;
+  s.newest_sample_stamp_s = newest_sample_stamp_s_;
+  return s;
+}
+
+CheckpointState CalibrationRun::checkpoint_state() const {
+  CheckpointState c;
+  c.time_origin_s = table_.time_origin_s;
+  c.steps = steps_seen_;
+  c.rows = table_.rows.size();
+  c.done = has_result();
+  c.fault = fault_;
+  return c;
+}
+
+std::string CalibrationRun::missing_message() const {
+  const std::array<int, 3> counts = positions_per_phase(table_);
+  const std::uint32_t n = steps();
+  const int needed = n ? static_cast<int>(n) : options_.min_positions_per_phase;
+  std::ostringstream s;
+  if (!fault_.empty()) {
+    s << "run aborted: " << fault_ << "; ";
+  } else if (!controller_abort_.empty()) {
+    s << "run aborted by the gimbal controller: " << controller_abort_ << "; ";
+  }
+  s << "no result yet: ";
+  if (!fit_error_.empty()) s << "the fit failed (" << fit_error_ << "); ";
+  // Which phases are missing dwells, and how many.
+  bool first = true;
+  for (Phase p : kPhases) {
+    if (counts[index(p)] >= needed) continue;
+    s << (first ? "missing " : ", ") << "phase " << phase_name(p) << " (" << counts[index(p)]
+      << " of " << (n ? std::to_string(n) : ">= " + std::to_string(needed)) << " dwells)";
+    first = false;
+  }
+  if (first) s << "all phases have their dwells";
+  if (commands_received_ == 0) s << "; no gimbal command received yet";
+  Phase phase;
+  std::uint32_t step = 0;
+  std::uint64_t samples = 0;
+  if (assembler_.current_dwell(&phase, &step, &samples)) {
+    s << "; in dwell phase " << phase_name(phase) << " step " << step << " (" << samples
+      << " samples)";
+  }
+  if (done_pending_) s << "; DONE received, fitting after the reorder window";
+  if (fitting_) s << "; fitted, the discrepancy analysis is running (result after it)";
+  if (rewind_pending()) s << "; waiting for the gimbal controller to resume";
+  if (retries_total_ > 0) s << "; " << retries_total_ << " position(s) measured again";
+  const AssemblerCounters c = counters();
+  s << "; samples used " << c.samples_used << ", dropped outside dwells "
+    << c.dropped_outside_dwell;
+  return s.str();
+}
+
+}  // namespace core
+}  // namespace accel_intrinsics
