@@ -25,6 +25,7 @@
 #include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/io/budget_file.h"
 #include "accel_intrinsics/io/residuals_csv.h"
+#include "accel_intrinsics/ros/offline_fit_residuals.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/io/text_report.h"
 #include "accel_intrinsics/ros/bag_input.h"
@@ -323,6 +324,11 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
     }
   }
 
+  if (!args.residuals_csv.empty()) {
+    const std::string why = residuals_csv_refusal(report);
+    if (!why.empty()) throw Failure{kOfflineFitBadCommandLine, "--residuals-csv: " + why};
+    write_offline_residuals_csv(args.residuals_csv, input.table, report);
+  }
   // Outputs: files first (all or nothing), then the report.
   const bool json_to_stdout = args.json_out == "-";
   std::unique_ptr<io::AtomicFile> csv_file, json_file;
