@@ -48,7 +48,8 @@ def tree(tmp_path):
     write(tmp_path, "test/core/fit/fit_test.cpp",
           '#include "accel_intrinsics/core/simulation/simulator.h"\n'
           '#include "accel_intrinsics/core/fit/fit.h"\n')
-    write(tmp_path, "bench/fit_bench.cpp", '#include "accel_intrinsics/core/simulation/simulator.h"\n')
+    write(tmp_path, "bench/fit_bench.cpp",
+          '#include "accel_intrinsics/core/simulation/simulator.h"\n')
     return tmp_path
 
 
@@ -65,7 +66,8 @@ def test_a_clean_fake_tree_passes(tree):
 
 def test_an_include_going_up_fails(tree):
     write(tree, "src/core/fit/eq4_fit.cpp",
-          '#include "accel_intrinsics/core/fit/fit.h"\n#include "accel_intrinsics/core/analysis/gap.h"\n')
+          '#include "accel_intrinsics/core/fit/fit.h"\n'
+          '#include "accel_intrinsics/core/analysis/gap.h"\n')
     result = run(tree)
     assert result.returncode == 1
     assert "src/core/fit/eq4_fit.cpp:2: up:" in result.stdout
