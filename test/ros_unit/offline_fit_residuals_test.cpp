@@ -66,9 +66,9 @@ constexpr double kG = 9.80665;
 constexpr double kStd = 0.01;  // sample std of each dwell, m/s^2
 constexpr int kN = 100;        // samples per dwell: standard error 0.001 m/s^2
 
-// A table from a device of the test's own, each mean off the model by a fixed pattern of
-// +-1.5 standard errors, so that the residuals are not zero and the reduced chi-square is known
-// only through the fit.
+// A table from a device of the test's own, each mean off the model by a fixed pattern of up to
+// 1.5 standard errors that the model cannot absorb, so that the residuals are not zero and the
+// reduced chi-square is known only through the fit.
 std::string write_table(const std::string& path) {
   Eigen::Matrix3d S;
   S << 1.012, 0.004, -0.003, -0.005, 0.987, 0.006, 0.002, -0.008, 1.003;
@@ -79,10 +79,13 @@ std::string write_table(const std::string& path) {
   double t = 10.0;
   int k = 0;
   for (char phase : {'x', 'y', 'z'}) {
+    ++k;
     for (int n = 0; n < kSteps; ++n, t += 3.0) {
       const double a = 2.0 * M_PI * n / kSteps;
       Eigen::Vector3d mean = S * (kG * direction(phase, a)) + O;
-      for (int s = 0; s < 3; ++s) mean(s) += ((k++ % 3) - 1) * 1.5 * kStd / std::sqrt(kN);
+      // Period 4 in the step (the angle's second harmonic, which S and O cannot follow).
+      for (int s = 0; s < 3; ++s)
+        mean(s) += (((n + s + k) % 4) - 1.5) * kStd / std::sqrt(kN);
       f << phase << ',' << n << ',' << a << ',' << t << ',' << t + 2.0 << ',' << kN << ','
         << mean(0) << ',' << mean(1) << ',' << mean(2) << ',' << kStd << ',' << kStd << ','
         << kStd << '\n';
