@@ -4,8 +4,8 @@
 // --seconds, subscribes imu/data_raw (a consumer downstream) and reports the node's CPU share
 // (from /proc/PID/stat over the sending time) and how many samples came back.
 //
-//   rosrun accel_intrinsics accelerometer _source:=serial_lines _serial_lines/port:=/tmp/ttyB \
-//     _serial_lines/columns:=t,x,y,z &
+//   rosrun accel_intrinsics accelerometer _source:=serial_lines _serial_lines/port:=/tmp/ttyB
+//     _serial_lines/columns:=t,x,y,z &  (one line)
 //   rosrun accel_intrinsics serial_lines_load --pid $! --port /tmp/ttyB --seconds 20
 #include <pty.h>
 #include <ros/ros.h>

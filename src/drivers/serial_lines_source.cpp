@@ -86,6 +86,7 @@ void SerialLinesAccelerometer::run() {
       port.close();
       std::lock_guard<std::mutex> lock(mutex_);
       ++status_.losses;
+      status_.loss_error = e.what();
       set_state(SerialLinkState::Lost, e.what(), clock_());
       // The device may come back reset: its clock starts again. What was held for the warm-up
       // is stamped with the fit as it stands (rate 1, the smallest delay seen).

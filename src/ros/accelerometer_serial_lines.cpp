@@ -47,11 +47,13 @@ void diagnose_serial_lines(const SerialLinesStatus& s, const SerialLinesOptions&
                            double now_s, diagnostic_updater::DiagnosticStatusWrapper* out) {
   using diagnostic_msgs::DiagnosticStatus;
   const double quiet_s = s.last_line_host_s < 0.0 ? -1.0 : now_s - s.last_line_host_s;
-  if (s.state != SerialLinkState::Connected) {
-    out->summaryf(DiagnosticStatus::ERROR, "%s %s: %s; retrying every %.3g s",
-                  options.port.c_str(),
-                  s.state == SerialLinkState::Lost ? "lost" : "cannot be opened",
-                  s.last_error.c_str(), options.reconnect_interval_s);
+  if (s.state == SerialLinkState::Lost) {
+    out->summaryf(DiagnosticStatus::ERROR, "%s lost (%s); reopening every %.3g s: %s",
+                  options.port.c_str(), s.loss_error.c_str(), options.reconnect_interval_s,
+                  s.last_error.c_str());
+  } else if (s.state == SerialLinkState::Opening) {
+    out->summaryf(DiagnosticStatus::ERROR, "%s cannot be opened: %s; retrying every %.3g s",
+                  options.port.c_str(), s.last_error.c_str(), options.reconnect_interval_s);
   } else if (s.last_line_host_s < 0.0 || quiet_s > 1.0) {
     out->summaryf(DiagnosticStatus::WARN, "%s connected but silent (no line for %.1f s)",
                   options.port.c_str(), std::max(0.0, now_s - std::max(s.last_line_host_s, s.since_s)));
@@ -76,6 +78,7 @@ void diagnose_serial_lines(const SerialLinesStatus& s, const SerialLinesOptions&
   out->add("open_failures", s.open_failures);
   out->add("overflow", s.overflow);
   out->add("last_error", s.last_error);
+  out->add("loss_error", s.loss_error);
   if (options.format.has_time()) {
     out->add("clock_ready", s.clock_ready ? "true" : "false");
     out->add("clock_rate_ppm", (s.clock_rate - 1.0) * 1e6);
@@ -89,8 +92,8 @@ void log_serial_lines(const SerialLinesStatus& previous, const SerialLinesStatus
                       const SerialLinesOptions& options) {
   const char* port = options.port.c_str();
   if (now.losses > previous.losses) {
-    ROS_ERROR("accelerometer: serial port lost: %s; reopening %s every %.3g s",
-              now.last_error.c_str(), port, options.reconnect_interval_s);
+    ROS_ERROR("accelerometer: %s; reopening %s every %.3g s", now.loss_error.c_str(), port,
+              options.reconnect_interval_s);
   }
   if (now.connects > previous.connects) {
     if (now.connects == 1) {

@@ -332,7 +332,8 @@ TEST(SerialLinesSource, StampsFromDeviceTimeWithin1msAt1kHz) {
   EXPECT_LT(worst, 1e-3) << "worst stamp error " << worst * 1e3 << " ms";
   EXPECT_TRUE(st.clock_ready);
   EXPECT_NEAR((st.clock_rate - 1.0) * 1e6, -100.0, 30.0);
-  RecordProperty("worst_stamp_error_us", std::to_string(std::lround(worst * 1e6)));
+  std::printf("worst stamp error at 1 kHz: %.0f us over %zu samples; drift seen %.1f ppm\n",
+              worst * 1e6, got.size(), (st.clock_rate - 1.0) * 1e6);
 }
 
 // Without t: the host clock at reception, never before the line was sent; blanks separate.
@@ -423,7 +424,7 @@ TEST(SerialLinesSource, RecoversWhenThePortIsLostAndBack) {
   ASSERT_TRUE(wait_for([&] { return source.status().state == ai::SerialLinkState::Lost; }, 5.0));
   ai::SerialLinesStatus st = source.status();
   EXPECT_EQ(st.losses, 1u);
-  EXPECT_NE(st.last_error.find("lost"), std::string::npos) << st.last_error;
+  EXPECT_NE(st.loss_error.find("lost"), std::string::npos) << st.loss_error;
   // Still away: attempts fail with the system's words, the state stays lost.
   ASSERT_TRUE(wait_for([&] { return source.status().open_failures >= 2; }, 5.0));
   st = source.status();
@@ -449,5 +450,6 @@ TEST(SerialLinesSource, RecoversWhenThePortIsLostAndBack) {
   EXPECT_EQ(n_after, after.size() - 1);  // the first line after reopening: partial
   EXPECT_GE(got.size(), 1400u + n_after);
   EXPECT_LT(worst, 1e-3) << "worst stamp error " << worst * 1e3 << " ms";
+  std::printf("worst stamp error across the unplug: %.0f us\n", worst * 1e6);
   EXPECT_EQ(source.status().garbled[static_cast<int>(ai::LineFault::Partial)], 2u);
 }

@@ -40,6 +40,7 @@ const char* link_state_name(SerialLinkState state);  // "opening", "connected", 
 struct SerialLinesStatus {
   SerialLinkState state = SerialLinkState::Opening;
   std::string last_error;     // the port's own words (cannot open / lost), "" when none
+  std::string loss_error;     // why the port was last lost ("" before any loss)
   std::uint64_t lines = 0;    // lines received (samples + garbled)
   std::uint64_t samples = 0;  // samples stamped and handed on
   std::array<std::uint64_t, kLineFaultKinds> garbled{};  // by LineFault (index 0 unused)
