@@ -25,10 +25,13 @@
 namespace {
 
 std::atomic<std::uint64_t> received{0};
-void on_imu(const sensor_msgs::Imu::ConstPtr&) { ++received; }
+void on_imu(const sensor_msgs::Imu::ConstPtr&) {
+  ++received;
+}
 
 int usage() {
-  std::fprintf(stderr, "usage: serial_lines_load --pid PID --port LINK [--rate HZ] [--seconds S]\n");
+  std::fprintf(stderr,
+               "usage: serial_lines_load --pid PID --port LINK [--rate HZ] [--seconds S]\n");
   return 2;
 }
 
@@ -41,11 +44,16 @@ int main(int argc, char** argv) {
   double rate_hz = 1000.0, seconds = 20.0;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
-    if (key == "--pid") pid = std::atoi(argv[i + 1]);
-    else if (key == "--port") link = argv[i + 1];
-    else if (key == "--rate") rate_hz = std::atof(argv[i + 1]);
-    else if (key == "--seconds") seconds = std::atof(argv[i + 1]);
-    else return usage();
+    if (key == "--pid")
+      pid = std::atoi(argv[i + 1]);
+    else if (key == "--port")
+      link = argv[i + 1];
+    else if (key == "--rate")
+      rate_hz = std::atof(argv[i + 1]);
+    else if (key == "--seconds")
+      seconds = std::atof(argv[i + 1]);
+    else
+      return usage();
   }
   if (pid <= 0 || link.empty() || rate_hz <= 0 || seconds <= 0) return usage();
   int master = -1, slave = -1;
@@ -69,7 +77,8 @@ int main(int argc, char** argv) {
   spinner.start();
 
   using Clock = std::chrono::steady_clock;
-  const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rate_hz));
+  const auto period =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rate_hz));
   std::uint64_t k = 0;
   auto write_line = [&](Clock::time_point when) {
     std::this_thread::sleep_until(when);
@@ -92,7 +101,8 @@ int main(int argc, char** argv) {
   const std::uint64_t k0 = k, received0 = received.load();
   const double cpu0 = bench::cpu_seconds(pid);
   const Clock::time_point t0 = Clock::now();
-  const Clock::time_point end = t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+  const Clock::time_point end =
+      t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
   next = t0;
   std::uint64_t failed = 0;
   while (next < end) failed += !write_line(next += period);

@@ -9,14 +9,16 @@ namespace accel_intrinsics {
 
 void DeviceClockFitOptions::validate() const {
   auto positive = [](double v, const char* name) {
-    if (!(std::isfinite(v) && v > 0.0)) throw std::invalid_argument(std::string(name) + " must be > 0");
+    if (!(std::isfinite(v) && v > 0.0))
+      throw std::invalid_argument(std::string(name) + " must be > 0");
   };
   positive(bin_s, "bin_s");
   positive(window_s, "window_s");
   positive(rate_span_s, "rate_span_s");
   positive(max_early_s, "max_early_s");
   positive(max_late_s, "max_late_s");
-  if (!(std::isfinite(warmup_s) && warmup_s >= 0.0)) throw std::invalid_argument("warmup_s must be >= 0");
+  if (!(std::isfinite(warmup_s) && warmup_s >= 0.0))
+    throw std::invalid_argument("warmup_s must be >= 0");
   if (window_s < 2.0 * bin_s) throw std::invalid_argument("window_s must be >= 2 bin_s");
   if (outliers_to_restart < 1) throw std::invalid_argument("outliers_to_restart must be >= 1");
 }

@@ -10,7 +10,9 @@ namespace accel_intrinsics {
 
 namespace {
 
-bool blank(char c) { return c == ' ' || c == '\t'; }
+bool blank(char c) {
+  return c == ' ' || c == '\t';
+}
 
 std::string trimmed(const std::string& s) {
   std::size_t a = 0, b = s.size();
@@ -47,9 +49,8 @@ std::vector<char> SerialLineFormat::parse_columns(const std::string& text) {
   std::size_t start = 0;
   for (;;) {
     const std::size_t comma = text.find(',', start);
-    const std::string name = trimmed(text.substr(start, comma == std::string::npos
-                                                            ? std::string::npos
-                                                            : comma - start));
+    const std::string name =
+        trimmed(text.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
     if (name == "t" || name == "x" || name == "y" || name == "z") {
       roles.push_back(name[0]);
     } else if (name == "_" || name == "skip") {

@@ -70,8 +70,8 @@ void SerialLinesAccelerometer::run() {
       } catch (const SerialError& e) {
         std::unique_lock<std::mutex> lock(mutex_);
         ++status_.open_failures;
-        set_state(status_.connects > 0 ? SerialLinkState::Lost : SerialLinkState::Opening,
-                  e.what(), clock_());
+        set_state(status_.connects > 0 ? SerialLinkState::Lost : SerialLinkState::Opening, e.what(),
+                  clock_());
         wake_.wait_for(lock, std::chrono::duration<double>(options_.reconnect_interval_s),
                        [this] { return stop_.load(); });
         continue;

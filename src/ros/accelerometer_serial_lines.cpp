@@ -56,7 +56,8 @@ void diagnose_serial_lines(const SerialLinesStatus& s, const SerialLinesOptions&
                   options.port.c_str(), s.last_error.c_str(), options.reconnect_interval_s);
   } else if (s.last_line_host_s < 0.0 || quiet_s > 1.0) {
     out->summaryf(DiagnosticStatus::WARN, "%s connected but silent (no line for %.1f s)",
-                  options.port.c_str(), std::max(0.0, now_s - std::max(s.last_line_host_s, s.since_s)));
+                  options.port.c_str(),
+                  std::max(0.0, now_s - std::max(s.last_line_host_s, s.since_s)));
   } else if (options.format.has_time() && !s.clock_ready) {
     out->summary(DiagnosticStatus::WARN, "device clock fit warming up (samples held)");
   } else {
@@ -97,9 +98,10 @@ void log_serial_lines(const SerialLinesStatus& previous, const SerialLinesStatus
   }
   if (now.connects > previous.connects) {
     if (now.connects == 1) {
-      ROS_INFO("accelerometer: reading %s at %d baud, columns %s, separator '%c'%s", port,
-               options.baud, options.format.columns_text().c_str(), options.format.separator,
-               options.format.has_time() ? " (stamps from the device's t)" : " (stamps at reception)");
+      ROS_INFO(
+          "accelerometer: reading %s at %d baud, columns %s, separator '%c'%s", port, options.baud,
+          options.format.columns_text().c_str(), options.format.separator,
+          options.format.has_time() ? " (stamps from the device's t)" : " (stamps at reception)");
     } else {
       ROS_WARN("accelerometer: serial port %s back (open %llu, after %llu failed attempts)", port,
                static_cast<unsigned long long>(now.connects),
@@ -119,8 +121,9 @@ void log_serial_lines(const SerialLinesStatus& previous, const SerialLinesStatus
                       now.last_garbled.c_str());
   }
   if (now.clock_restarts > previous.clock_restarts) {
-    ROS_WARN("accelerometer: the device's clock jumped (reset or wrapped counter): clock fit "
-             "restarted");
+    ROS_WARN(
+        "accelerometer: the device's clock jumped (reset or wrapped counter): clock fit "
+        "restarted");
   }
 }
 

@@ -75,7 +75,8 @@ class Device {
   void plug() {
     std::lock_guard<std::mutex> lock(mutex_);
     char name[256] = {0};
-    if (openpty(&master_, &slave_, name, nullptr, nullptr) != 0) throw std::runtime_error("openpty");
+    if (openpty(&master_, &slave_, name, nullptr, nullptr) != 0)
+      throw std::runtime_error("openpty");
     termios tio{};
     tcgetattr(slave_, &tio);
     cfmakeraw(&tio);
@@ -132,8 +133,8 @@ struct Written {
 
 // Writes lines for samples [k_begin, k_end) with host0 the host time of sample 0. x = k (the
 // sample's id), y and z known values. Returns what was written, by k.
-std::map<long, Written> write_samples(Device& dev, const DeviceProgram& p, double host0, long k_begin,
-                                      long k_end, std::mt19937_64* rng,
+std::map<long, Written> write_samples(Device& dev, const DeviceProgram& p, double host0,
+                                      long k_begin, long k_end, std::mt19937_64* rng,
                                       const std::function<std::string(long)>& garbage = {}) {
   std::map<long, Written> out;
   std::exponential_distribution<double> jitter(1.0 / p.jitter_mean_s);
@@ -267,8 +268,8 @@ TEST(DeviceClockFit, LowerEnvelopeTracksDriftUnderJitterAndStalls) {
     double delay = latency + jitter(rng) + (one_in(rng) == 0 ? stall(rng) : 0.0);
     ASSERT_EQ(fit.add(device, host_truth + delay), ai::DeviceClockFit::Added::Used) << k;
     if (fit.ready()) {
-      worst_after_warmup = std::max(worst_after_warmup,
-                                    std::abs(fit.host_time(device) - (host_truth + latency)));
+      worst_after_warmup =
+          std::max(worst_after_warmup, std::abs(fit.host_time(device) - (host_truth + latency)));
     }
   }
   EXPECT_TRUE(fit.ready());
@@ -370,18 +371,17 @@ TEST(SerialLinesSource, GarbledAndCutLinesAreCountedNeverPublished) {
   // Before every 40th sample, one kind of garbage, in turn.
   const std::vector<std::string> junk = {
       std::string("\x02\x7f\xc3\xff junk\x00\x01", 11) + "\n",  // binary
-      "1.5,2.5\n",                                               // columns: too few
-      "1.0,2.0,3.0,4.0,5.0\n",                                   // columns: too many
-      "1300.0,abc,1,2\n",                                        // number
-      "1300.0,nan,1,2\n",                                        // number
-      std::string(300, '7') + "\n",                              // too long
+      "1.5,2.5\n",                                              // columns: too few
+      "1.0,2.0,3.0,4.0,5.0\n",                                  // columns: too many
+      "1300.0,abc,1,2\n",                                       // number
+      "1300.0,nan,1,2\n",                                       // number
+      std::string(300, '7') + "\n",                             // too long
       "1234.9,1",  // a line cut in half: it runs into the next one (columns, both lost)
   };
   std::map<ai::LineFault, int> expected;
-  const ai::LineFault kinds[] = {ai::LineFault::Binary, ai::LineFault::Columns,
-                                 ai::LineFault::Columns, ai::LineFault::Number,
-                                 ai::LineFault::Number, ai::LineFault::TooLong,
-                                 ai::LineFault::Columns};
+  const ai::LineFault kinds[] = {
+      ai::LineFault::Binary, ai::LineFault::Columns, ai::LineFault::Columns, ai::LineFault::Number,
+      ai::LineFault::Number, ai::LineFault::TooLong, ai::LineFault::Columns};
   int n_junk = 0;
   auto garbage = [&](long k) -> std::string {
     if (k == 0 || k % 40 != 0) return "";

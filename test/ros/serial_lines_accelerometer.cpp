@@ -141,7 +141,9 @@ std::map<long, Truth> play(Pty& pty, double host0, long k0, long k1, std::mt1993
   return truth;
 }
 
-long as_long(const std::string& s) { return s.empty() ? -1 : std::stol(s); }
+long as_long(const std::string& s) {
+  return s.empty() ? -1 : std::stol(s);
+}
 
 }  // namespace
 
@@ -160,7 +162,8 @@ TEST(SerialLinesAccelerometer, PublishesTheDevicesSamplesWithDeviceTimeAndSurviv
   spinner.start();
 
   // No device yet: the node says it cannot open the port, and keeps trying.
-  ASSERT_TRUE(test_wait::wait_for([&] { return diag.count() > 0; }, 15.0, "the node's diagnostics"));
+  ASSERT_TRUE(
+      test_wait::wait_for([&] { return diag.count() > 0; }, 15.0, "the node's diagnostics"));
   EXPECT_EQ(diag.level(), diagnostic_msgs::DiagnosticStatus::ERROR) << diag.message();
   EXPECT_NE(diag.message().find("cannot be opened"), std::string::npos) << diag.message();
   ASSERT_TRUE(test_wait::wait_for([&] { return imu_sub.getNumPublishers() > 0; }, 10.0,
@@ -198,8 +201,8 @@ TEST(SerialLinesAccelerometer, PublishesTheDevicesSamplesWithDeviceTimeAndSurviv
                                   "the node reopening the port"));
   const long k_back = std::lround(std::ceil((ros::WallTime::now().toSec() - host0 + 0.05) * 500));
   const std::map<long, Truth> after = play(pty, host0, k_back, k_back + 750, &rng, &garbled);
-  ASSERT_TRUE(test_wait::wait_for(
-      [&] { return received.size() >= before + after.size() - 1; }, 10.0, "samples after the return"));
+  ASSERT_TRUE(test_wait::wait_for([&] { return received.size() >= before + after.size() - 1; },
+                                  10.0, "samples after the return"));
   truth.insert(after.begin(), after.end());
   ros::WallDuration(0.2).sleep();  // anything extra (a garbled line published) would show now
 

@@ -13,12 +13,12 @@ namespace accel_intrinsics {
 // Why a line was not a sample. Every refused line is counted by kind and never published.
 enum class LineFault {
   None = 0,
-  Binary,    // a byte that is neither printable ASCII nor a tab (line noise, a reset's junk)
-  TooLong,   // longer than SerialLineFormat::max_line_chars
-  Columns,   // not the configured number of columns (includes a line cut in half)
-  Number,    // a column that is not a finite decimal number
-  Partial,   // the first line after the port was opened (it may start mid-line)
-  Clock,     // t not after the previous t, or far off the device-to-host clock fit
+  Binary,   // a byte that is neither printable ASCII nor a tab (line noise, a reset's junk)
+  TooLong,  // longer than SerialLineFormat::max_line_chars
+  Columns,  // not the configured number of columns (includes a line cut in half)
+  Number,   // a column that is not a finite decimal number
+  Partial,  // the first line after the port was opened (it may start mid-line)
+  Clock,    // t not after the previous t, or far off the device-to-host clock fit
 };
 constexpr int kLineFaultKinds = 7;  // None ... Clock
 // "binary", "too_long", "columns", "number", "partial", "clock" ("" for None).
@@ -46,7 +46,7 @@ struct SerialLineFormat {
 
 struct ParsedLine {
   std::array<double, 3> xyz{{0.0, 0.0, 0.0}};  // as printed, any unit
-  double t_s = 0.0;                              // device time, when the format has a t column
+  double t_s = 0.0;                            // device time, when the format has a t column
 };
 
 // Parses one line (without its terminator). LineFault::None and *out filled, or the fault.

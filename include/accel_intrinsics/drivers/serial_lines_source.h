@@ -9,8 +9,8 @@
 #include <array>
 #include <atomic>
 #include <condition_variable>
-#include <deque>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <mutex>
 #include <string>
@@ -44,11 +44,11 @@ struct SerialLinesStatus {
   std::uint64_t lines = 0;    // lines received (samples + garbled)
   std::uint64_t samples = 0;  // samples stamped and handed on
   std::array<std::uint64_t, kLineFaultKinds> garbled{};  // by LineFault (index 0 unused)
-  std::string last_garbled;     // the last refused line, printable (\xNN for other bytes)
-  std::uint64_t connects = 0;   // successful opens
-  std::uint64_t losses = 0;     // times the port was lost after opening
+  std::string last_garbled;         // the last refused line, printable (\xNN for other bytes)
+  std::uint64_t connects = 0;       // successful opens
+  std::uint64_t losses = 0;         // times the port was lost after opening
   std::uint64_t open_failures = 0;  // failed attempts to open
-  std::uint64_t overflow = 0;   // samples dropped because poll() did not take them
+  std::uint64_t overflow = 0;       // samples dropped because poll() did not take them
   double last_line_host_s = -1.0;   // host time of the newest line; < 0 before any
   double since_s = 0.0;             // host time of the last state change
   // The device clock (t column only).
@@ -76,8 +76,8 @@ class SerialLinesAccelerometer : public AccelerometerSource {
  private:
   void run();
   void handle_line(const std::string& line, double host_s);  // with mutex_ held
-  void stamp_held();                                          // with mutex_ held
-  void push(const core::ImuSample& sample);                   // with mutex_ held
+  void stamp_held();                                         // with mutex_ held
+  void push(const core::ImuSample& sample);                  // with mutex_ held
   void set_state(SerialLinkState state, const std::string& error, double host_s);
 
   SerialLinesOptions options_;
@@ -92,8 +92,8 @@ class SerialLinesAccelerometer : public AccelerometerSource {
     double device_s;
     core::ImuSample sample;
   };
-  std::vector<Held> held_;               // received before the clock fit was ready
-  std::deque<core::ImuSample> ready_;    // stamped, for poll()
+  std::vector<Held> held_;             // received before the clock fit was ready
+  std::deque<core::ImuSample> ready_;  // stamped, for poll()
   std::thread thread_;
 };
 
