@@ -18,6 +18,7 @@ ISSUE12 = "issue 12"
 ISSUE15 = "issue 15"
 ISSUE22 = "issue 22"
 ISSUE26 = "issue 26"
+ISSUE33 = "issue 33"
 SET_HERE = "set here"
 
 
@@ -71,6 +72,8 @@ def main(argv):
         ("calibration nodelet at 50 kHz (in process, pointers), bursts of 25", lambda: f("calibration_nodelet_50khz_bursty_cpu"), "<", 5.0, pct, ISSUE26),
         ("calibration nodelet at 50 kHz: the whole process with the publisher (driver) thread, paced / bursty", lambda: "%.1f / %.1f %%" % (f("calibration_nodelet_50khz_paced_process_cpu"), f("calibration_nodelet_50khz_bursty_process_cpu")), None, None, str, ""),
         ("calibration nodelet at 50 kHz: messages not received or dropped late (all runs)", lambda: sum(f("calibration_nodelet_50khz_%s_%s" % (a, b)) for a in ("paced", "bursty") for b in ("lost", "dropped_late")), "<=", 0, lambda v: "%.0f" % v, ISSUE26),
+        ("accelerometer node reading serial lines (t,x,y,z) at 1 kHz from a pseudo-terminal", lambda: f("serial_lines_node_1khz_cpu"), "<", 2.0, pct, ISSUE33),
+        ("accelerometer node, serial lines at 1 kHz: samples sent but not received", lambda: f("serial_lines_node_1khz_samples_missing"), "<=", 0, lambda v: "%.0f" % v, SET_HERE),
         ("apply node at 10 kHz (TCP in and out), bursts of 5", lambda: f("apply_node_bursty_cpu"), "<", 5.0, pct, ISSUE12),
         ("apply node at 10 kHz (TCP in and out), one message per 100 µs", lambda: f("apply_node_paced_cpu"), "<", 5.0, pct, ISSUE12),
         ("apply nodelet at 10 kHz (in process, pointers), bursts of 5", lambda: f("apply_nodelet_bursty_cpu"), "<", 5.0, pct, ISSUE12),

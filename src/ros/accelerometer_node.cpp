@@ -7,6 +7,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "accel_intrinsics/ros/accelerometer_serial_lines.h"
 #include "accel_intrinsics/ros/conversions.h"
 #include "accel_intrinsics/ros/names.h"
 #include "accel_intrinsics/ros/params.h"
@@ -16,10 +17,11 @@ namespace accel_intrinsics {
 AccelerometerOptions AccelerometerOptions::load(const ros::NodeHandle& pnh) {
   AccelerometerOptions o;
   read_param(pnh, "source", &o.source);
-  require(o.source == "simulated", pnh, "source",
+  require(o.source == "simulated" || o.source == "serial_lines", pnh, "source",
           "unknown accelerometer source '" + o.source +
-              "' (known: simulated; for hardware run the IMU driver and remap its topic, "
-              "see launch/rig.launch)");
+              "' (known: simulated, serial_lines; for an IMU with its own ROS driver run the "
+              "driver and remap its topic, see launch/rig.launch)");
+  if (o.source == "serial_lines") o.serial_lines = load_serial_lines_options(pnh);
   read_param(pnh, "frame_id", &o.frame_id);
   require(!o.frame_id.empty(), pnh, "frame_id", "must not be empty");
   read_param(pnh, "world_frame", &o.world_frame);
@@ -88,19 +90,37 @@ AccelerometerOptions AccelerometerOptions::load(const ros::NodeHandle& pnh) {
 AccelerometerNode::AccelerometerNode(ros::NodeHandle nh, ros::NodeHandle pnh,
                                      const AccelerometerOptions& options)
     : nh_(nh), pnh_(pnh), options_(options), buffer_(ros::Duration(options.tf_cache_s)) {
+  imu_pub_ = nh_.advertise<sensor_msgs::Imu>(names::kImuTopic, 10000);
+  timer_ =
+      nh_.createTimer(ros::Duration(1.0 / options_.poll_hz), &AccelerometerNode::on_timer, this);
+  if (options_.source == "serial_lines") {
+    // A bare MEMS part on a microcontroller (docs/design.md section 15): no tf, no gimbal.
+    auto serial = std::make_unique<SerialLinesAccelerometer>(
+        options_.serial_lines, [] { return ros::Time::now().toSec(); });
+    serial_ = serial.get();
+    source_ = std::move(serial);
+    updater_.reset(new diagnostic_updater::Updater(nh_, pnh_, pnh_.getNamespace()));
+    updater_->setHardwareID("serial_lines " + options_.serial_lines.port);
+    updater_->add("serial_lines", [this](diagnostic_updater::DiagnosticStatusWrapper& status) {
+      diagnose_serial_lines(serial_->status(), options_.serial_lines, ros::Time::now().toSec(),
+                            &status);
+    });
+    ROS_INFO("accelerometer: serial_lines source on %s (columns %s), publishing %s",
+             options_.serial_lines.port.c_str(),
+             options_.serial_lines.format.columns_text().c_str(),
+             nh_.resolveName(names::kImuTopic).c_str());
+    return;
+  }
   auto simulated = std::make_unique<SimulatedAccelerometer>(
       options_.simulated, [this](double t_s, Eigen::Matrix3d* R) { return lookup(t_s, R); });
   simulated_ = simulated.get();
   source_ = std::move(simulated);
-  imu_pub_ = nh_.advertise<sensor_msgs::Imu>(names::kImuTopic, 10000);
   if (source_->publishes_temperature())
     temperature_pub_ = nh_.advertise<sensor_msgs::Temperature>(core::channel_spec(core::Channel::Temperature).topic, 1000);
   tf_sub_ = nh_.subscribe(names::kTfTopic, 1000, &AccelerometerNode::on_tf, this,
                           ros::TransportHints().tcpNoDelay());
   command_sub_ =
       nh_.subscribe(names::kGimbalCommandTopic, 100, &AccelerometerNode::on_command, this);
-  timer_ =
-      nh_.createTimer(ros::Duration(1.0 / options_.poll_hz), &AccelerometerNode::on_timer, this);
   ROS_INFO(
       "accelerometer: %s source, %.1f Hz, noise %.3g m/s^2 per sample, orientation from %s "
       "(%s -> %s)",
@@ -205,6 +225,12 @@ void AccelerometerNode::on_timer(const ros::TimerEvent&) {
   const ros::Time now = ros::Time::now();
   if (now.isZero()) return;
   poll(now);
+  if (serial_) {
+    const SerialLinesStatus status = serial_->status();
+    log_serial_lines(serial_status_, status, options_.serial_lines);
+    serial_status_ = status;
+    updater_->update();
+  }
 }
 
 }  // namespace accel_intrinsics

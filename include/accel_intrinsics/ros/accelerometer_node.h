@@ -4,6 +4,7 @@
 // different namespaces stay apart) at each sample time.
 #pragma once
 
+#include <diagnostic_updater/diagnostic_updater.h>
 #include <ros/ros.h>
 #include <tf2_msgs/TFMessage.h>
 #include <tf2_ros/buffer.h>
@@ -14,16 +15,18 @@
 
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/drivers/accelerometer_source.h"
+#include "accel_intrinsics/drivers/serial_lines_source.h"
 
 namespace accel_intrinsics {
 
 struct AccelerometerOptions {
-  std::string source = "simulated";         // backend
+  std::string source = "simulated";         // backend: simulated or serial_lines
   std::string frame_id = "dut";             // header.frame_id of the IMU messages
   std::string world_frame = "world";        // tf frames the simulated source looks up
   double poll_hz = 200.0;                   // how often the source is polled (node clock), Hz
   double tf_cache_s = 60.0;                 // tf history kept, s
   SimulatedAccelerometerOptions simulated;  // ~device/S, ~device/O, ~device/effects, ~rate_hz, ...
+  SerialLinesOptions serial_lines;          // ~serial_lines/port, baud, columns, separator, ...
   // Fault injection (~fault/...), times in seconds after the first gimbal command (t0):
   double stall_after_s = -1.0;     // publish nothing from t0 + stall_after_s (< 0: off) ...
   double stall_for_s = 1e9;        // ... for this long (default: for good)
@@ -36,7 +39,7 @@ struct AccelerometerOptions {
 
 class AccelerometerNode {
  public:
-  // Builds the simulated source on this node's tf buffer.
+  // Builds the simulated source on this node's tf buffer, or the serial_lines source.
   AccelerometerNode(ros::NodeHandle nh, ros::NodeHandle pnh, const AccelerometerOptions& options);
 
   // Polls the source for samples up to `now` and publishes them.
@@ -53,6 +56,9 @@ class AccelerometerNode {
   tf2_ros::Buffer buffer_;
   std::unique_ptr<AccelerometerSource> source_;
   SimulatedAccelerometer* simulated_ = nullptr;  // source_ when simulated
+  SerialLinesAccelerometer* serial_ = nullptr;   // source_ when serial_lines
+  SerialLinesStatus serial_status_;              // as last seen (logs what changed)
+  std::unique_ptr<diagnostic_updater::Updater> updater_;  // serial_lines only
   ros::Subscriber tf_sub_, command_sub_;
   ros::Publisher imu_pub_;
   ros::Publisher temperature_pub_;  // imu/temperature, when the source publishes a temperature
