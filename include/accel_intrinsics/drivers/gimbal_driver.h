@@ -49,13 +49,37 @@ using core::GimbalFault;
 using core::GimbalTarget;
 using core::target_of;
 
+// ROS topics a driver talks over (ros_joint, manual); the node wires them (names relative to the
+// controller's namespace). Serial and simulated drivers use none.
+struct GimbalDriverTopics {
+  std::string joint_states;                 // sensor_msgs/JointState in ("" none)
+  std::vector<std::string> command_topics;  // std_msgs/Float64 out, rad
+  std::string imu;                          // sensor_msgs/Imu in ("" none)
+};
+// What the node carries out for such a driver.
+class GimbalLinks {
+ public:
+  virtual ~GimbalLinks() = default;
+  // Publishes a joint position command (rad) on one of topics().command_topics.
+  virtual void publish_command(const std::string& topic, double position_rad) = 0;
+};
+
 // A gimbal the controller drives: what the protocol needs (core::GimbalMotion: name, move_to,
-// settled, settled_at, stop, update, manual_remount, recover, status_text) and the DUT's true
-// orientation for tf.
+// settled, settled_at, stop, update, manual_remount, recover, status_text, the operator calls)
+// and the DUT's true orientation for tf; a driver that talks over ROS topics names them and
+// takes what arrives as plain calls (the node converts the messages), so it stays ROS-free.
 class GimbalDriver : public core::GimbalMotion {
  public:
   // True orientation of the DUT at t_s (encoders on hardware; the model in simulation).
   virtual GimbalTransforms orientation(double t_s) const = 0;
+  virtual GimbalDriverTopics topics() const { return {}; }
+  // The node's links, before the first move; `links` outlives the driver's use of it.
+  virtual void connect(GimbalLinks* /*links*/) {}
+  // A sensor_msgs/JointState received at t_s (node clock): names and positions (rad).
+  virtual void on_joint_state(double /*t_s*/, const std::vector<std::string>& /*names*/,
+                              const std::vector<double>& /*positions_rad*/) {}
+  // A sensor_msgs/Imu received at t_s: linear_acceleration (R_u, R_v, R_w).
+  virtual void on_imu(double /*t_s*/, const Eigen::Vector3d& /*outputs*/) {}
 };
 
 // The simulated gimbal. Its effects are the gimbal side of docs/design.md section 3 and are read from

@@ -3,6 +3,7 @@
 // package's model), and a tilted turning axis gives model.h's axis_tilt term.
 #include <gtest/gtest.h>
 
+#include <Eigen/LU>
 #include <cmath>
 
 #include "accel_intrinsics/core/model/constants.h"
