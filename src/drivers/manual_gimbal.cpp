@@ -92,6 +92,8 @@ void ManualGimbal::on_imu(double t_s, const Eigen::Vector3d& outputs) {
 }
 
 void ManualGimbal::move_to(const GimbalTarget& target, double /*t_s*/) {
+  first_of_phase_ = !moved_ || target.phase != target_.phase;
+  moved_ = true;
   target_ = target;
   waiting_ = true;
   checking_ = false;
@@ -143,10 +145,11 @@ std::string ManualGimbal::operator_request() const {
   std::string out = std::string("phase ") + core::phase_name(target_.phase) + ": set ";
   const PhaseAxes& p = options_.axis_map.phases[core::index(target_.phase)];
   const std::map<std::string, double> deg = operator_targets_deg();
-  // The turning axis first, then the held ones.
+  // The turning axis first, then the held ones when the phase begins (they stay put within it).
   out += p.axis + " to " + fixed(deg.at(p.axis), 1) + " deg";
   for (const auto& a : deg) {
-    if (a.first != p.axis) out += ", " + a.first + " to " + fixed(a.second, 1) + " deg";
+    if (a.first != p.axis && first_of_phase_)
+      out += ", " + a.first + " to " + fixed(a.second, 1) + " deg";
   }
   return out;
 }

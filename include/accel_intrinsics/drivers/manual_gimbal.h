@@ -67,6 +67,8 @@ class ManualGimbal : public GimbalDriver {
  private:
   ManualGimbalOptions options_;
   GimbalTarget target_;
+  bool first_of_phase_ = true;  // the request names the held axes too
+  bool moved_ = false;
   bool waiting_ = false;   // for the operator
   bool checking_ = false;  // averaging the IMU
   bool settled_ = true;
