@@ -1,6 +1,7 @@
 // The manual gimbal driver (manual_gimbal.h).
 #include "accel_intrinsics/drivers/manual_gimbal.h"
 
+#include <algorithm>
 #include <cmath>
 #include <iomanip>
 #include <sstream>

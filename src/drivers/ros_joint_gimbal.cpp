@@ -1,6 +1,7 @@
 // The ros_joint gimbal driver (ros_joint_gimbal.h).
 #include "accel_intrinsics/drivers/ros_joint_gimbal.h"
 
+#include <algorithm>
 #include <cmath>
 #include <iomanip>
 #include <sstream>

@@ -51,7 +51,7 @@ class ManualGimbal : public GimbalDriver {
   void on_imu(double t_s, const Eigen::Vector3d& outputs) override;
 
   void move_to(const GimbalTarget& target, double t_s) override;
-  bool settled(double t_s) const override { return settled_; }
+  bool settled(double /*t_s*/) const override { return settled_; }
   double settled_at(double t_s) const override { return settled_ ? settled_s_ : t_s; }
   void stop(double t_s) override;
   void update(double t_s) override;
