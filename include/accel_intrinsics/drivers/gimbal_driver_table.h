@@ -12,6 +12,7 @@
 
 #include "accel_intrinsics/drivers/driver_params.h"
 #include "accel_intrinsics/drivers/gimbal_driver.h"
+#include "accel_intrinsics/drivers/serial_gimbal.h"
 
 namespace accel_intrinsics {
 
