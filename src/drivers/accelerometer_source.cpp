@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "accel_intrinsics/core/model/gimbal_kinematics.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace accel_intrinsics {
@@ -92,7 +93,7 @@ SimulatedAccelerometer::SimulatedAccelerometer(const SimulatedAccelerometerOptio
 }
 
 Eigen::Vector3d SimulatedAccelerometer::specific_force(const Eigen::Matrix3d& R_world_dut) const {
-  return R_world_dut.transpose() * Eigen::Vector3d(0.0, 0.0, options_.local_gravity);
+  return core::specific_force_in_dut(R_world_dut, options_.local_gravity);
 }
 
 Eigen::Vector3d SimulatedAccelerometer::outputs(const Eigen::Vector3d& f_dut, double time_s,

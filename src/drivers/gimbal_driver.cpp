@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/model/gimbal_kinematics.h"
 #include "accel_intrinsics/core/model/model.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 
@@ -21,38 +22,19 @@ bool finite_non_negative(double v) {
 
 }  // namespace
 
-// R_gimbal_dut. With f_gimbal = (sin tau, cos tau sin theta, cos tau cos theta) (the world up
-// axis seen from a frame turned by theta about its x axis, which is raised by tau), the DUT sees
-// f_dut = R_gimbal_dut^T f_gimbal:
-//   x: identity, theta = alpha                      -> (sin tau, c sin a, c cos a)
-//   y: x_dut = -y_g, y_dut = x_g, theta = -alpha     -> (c sin a, sin tau, c cos a)
-//   z: x_dut = y_g, y_dut = z_g, z_dut = x_g, theta = alpha -> (c sin a, c cos a, sin tau)
-// (c = cos tau); each is eq. (4) with the tilt term of model.h. All three are proper rotations.
-Eigen::Matrix3d mount_rotation(core::Phase phase) {
-  Eigen::Matrix3d P;  // f_dut = P f_gimbal, so R_gimbal_dut = P^T
-  switch (phase) {
-    case core::Phase::X: P.setIdentity(); break;
-    case core::Phase::Y: P << 0, -1, 0, 1, 0, 0, 0, 0, 1; break;
-    case core::Phase::Z:
-    default: P << 0, 1, 0, 0, 0, 1, 1, 0, 0; break;
-  }
-  return P.transpose();
-}
-
-double gimbal_angle(core::Phase phase, double true_angle_rad) {
-  return phase == core::Phase::Y ? -true_angle_rad : true_angle_rad;
+GimbalTransforms split_at_inner_axis(const Eigen::Matrix3d& world_dut, core::Phase phase,
+                                     double alpha_rad) {
+  GimbalTransforms out;
+  out.gimbal_dut = Eigen::Quaterniond(Eigen::AngleAxisd(
+      core::default_stage_angles(phase, alpha_rad).y_rad, Eigen::Vector3d::UnitZ()));
+  out.world_gimbal =
+      (Eigen::Quaterniond(world_dut).normalized() * out.gimbal_dut.conjugate()).normalized();
+  return out;
 }
 
 GimbalTransforms gimbal_transforms(core::Phase phase, double true_angle_rad, double tilt_rad) {
-  // The gimbal axis (gimbal x) along world x raised by tau toward world z: R_y(-tau) e_x =
-  // (cos tau, 0, sin tau). Then the turn by theta about that axis.
-  const Eigen::Quaterniond tilt(Eigen::AngleAxisd(-tilt_rad, Eigen::Vector3d::UnitY()));
-  const Eigen::Quaterniond turn(
-      Eigen::AngleAxisd(gimbal_angle(phase, true_angle_rad), Eigen::Vector3d::UnitX()));
-  GimbalTransforms out;
-  out.world_gimbal = (tilt * turn).normalized();
-  out.gimbal_dut = Eigen::Quaterniond(mount_rotation(phase)).normalized();
-  return out;
+  return split_at_inner_axis(core::phase_pose(phase, true_angle_rad, tilt_rad), phase,
+                             true_angle_rad);
 }
 
 void SimulatedGimbalOptions::validate() const {
@@ -188,10 +170,8 @@ GimbalTransforms SimulatedGimbalDriver::orientation(double t_s) const {
     axis(core::index(target_.phase)) = 1.0;
     world_dut = world_dut * Eigen::Quaterniond(Eigen::AngleAxisd(r, axis));
   }
-  GimbalTransforms out;
-  out.gimbal_dut = Eigen::Quaterniond(mount_rotation(target_.phase)).normalized();
-  out.world_gimbal = (world_dut.normalized() * out.gimbal_dut.conjugate()).normalized();
-  return out;
+  return split_at_inner_axis(world_dut.normalized().toRotationMatrix(), target_.phase,
+                             target_.angle_rad);
 }
 
 }  // namespace accel_intrinsics

@@ -4,6 +4,9 @@
 
 #include <diagnostic_msgs/DiagnosticStatus.h>
 #include <diagnostic_msgs/KeyValue.h>
+#include <sensor_msgs/Imu.h>
+#include <sensor_msgs/JointState.h>
+#include <std_msgs/Float64.h>
 #include <tf2_msgs/TFMessage.h>
 
 #include <sstream>
@@ -98,6 +101,7 @@ GimbalControllerNode::GimbalControllerNode(ros::NodeHandle nh, ros::NodeHandle p
   resume_srv_ = nh_.advertiseService(names::kResumeService, &GimbalControllerNode::on_resume, this);
   continue_srv_ =
       nh_.advertiseService(names::kContinueService, &GimbalControllerNode::on_continue, this);
+  wire_driver_topics();
   updater_.reset(new diagnostic_updater::Updater(nh_, pnh_));
   updater_->setHardwareID(driver_->name() + " gimbal " + nh_.getNamespace());
   updater_->add("protocol", this, &GimbalControllerNode::diagnose);
@@ -119,6 +123,40 @@ GimbalControllerNode::GimbalControllerNode(ros::NodeHandle nh, ros::NodeHandle p
            schedule.back().dwell_end_s + options_.start_delay_s,
            options_.autostart ? "autostart"
                               : ("waiting for " + nh_.resolveName(names::kStartService)).c_str());
+}
+
+void GimbalControllerNode::wire_driver_topics() {
+  const GimbalDriverTopics topics = driver_->topics();
+  for (const std::string& topic : topics.command_topics) {
+    if (joint_command_pubs_.count(topic) == 0)
+      joint_command_pubs_[topic] = nh_.advertise<std_msgs::Float64>(topic, 10);
+  }
+  // The messages go to the driver as plain calls, at the time they arrive on the node clock.
+  if (!topics.joint_states.empty()) {
+    joint_state_sub_ = nh_.subscribe<sensor_msgs::JointState>(
+        topics.joint_states, 100, [this](const sensor_msgs::JointState::ConstPtr& msg) {
+          driver_->on_joint_state(ros::Time::now().toSec(), msg->name, msg->position);
+        });
+  }
+  if (!topics.imu.empty()) {
+    imu_sub_ = nh_.subscribe<sensor_msgs::Imu>(
+        topics.imu, 1000, [this](const sensor_msgs::Imu::ConstPtr& msg) {
+          // Arrival time: only samples after the operator's continue count, whatever the IMU's
+          // own clock says.
+          driver_->on_imu(ros::Time::now().toSec(), Eigen::Vector3d(msg->linear_acceleration.x,
+                                             msg->linear_acceleration.y,
+                                             msg->linear_acceleration.z));
+        });
+  }
+  driver_->connect(this);
+}
+
+void GimbalControllerNode::publish_command(const std::string& topic, double position_rad) {
+  const auto it = joint_command_pubs_.find(topic);
+  if (it == joint_command_pubs_.end()) return;
+  std_msgs::Float64 msg;
+  msg.data = position_rad;
+  it->second.publish(msg);
 }
 
 void GimbalControllerNode::on_timer(const ros::TimerEvent&) {
@@ -240,6 +278,9 @@ void GimbalControllerNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper&
   const core::ProtocolStatus s = protocol_->status(ros::Time::now().toSec());
   if (s.state == State::Aborted) {
     status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "aborted: " + s.last_error);
+  } else if (s.state == State::WaitOperator) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                   "waiting for the operator: " + s.operator_request);
   } else if (s.state == State::Remount) {
     status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
                    std::string("waiting for the operator to remount the DUT for phase ") +
@@ -303,6 +344,13 @@ void GimbalControllerNode::publish_progress(const ros::Time& now, const core::Pr
   msg.values.push_back(kv("fraction", num(s.fraction, 4)));
   msg.values.push_back(kv("time_left_s", num(s.time_left_s, 1)));
   msg.values.push_back(kv("stamp", num(now.toSec(), 3)));
+  msg.values.push_back(kv("operator_waits", std::to_string(s.operator_waits)));
+  if (s.state == State::WaitOperator) {
+    // What supervise asks the operator, and the target's stage positions (deg).
+    msg.values.push_back(kv("request", s.operator_request));
+    msg.values.push_back(kv("pose_check", s.operator_complaint));
+    for (const auto& a : s.stage_deg) msg.values.push_back(kv("stage_" + a.first + "_deg", num(a.second, 3)));
+  }
   progress_pub_.publish(msg);
   if (log && s.running) {
     ROS_INFO("gimbal controller: %s, %.0f%%, %.0f s left", msg.message.c_str(), 100.0 * s.fraction,

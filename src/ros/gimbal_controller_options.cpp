@@ -3,85 +3,12 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "accel_intrinsics/drivers/grbl_driver.h"
-#include "accel_intrinsics/drivers/smc100_driver.h"
+#include "accel_intrinsics/drivers/gimbal_driver_table.h"
 #include "accel_intrinsics/ros/gimbal_controller_node.h"
 #include "accel_intrinsics/ros/params.h"
+#include "accel_intrinsics/ros/ros_driver_params.h"
 
 namespace accel_intrinsics {
-
-namespace {
-
-// ~<driver>/...: the serial gimbal and its per-phase axis map.
-void read_serial_options(const ros::NodeHandle& pnh, const std::string& driver,
-                         GimbalControllerOptions* o) {
-  const ros::NodeHandle dn(pnh, driver);
-  SerialGimbalOptions& s = o->serial;
-  s.baud = driver == "smc100" ? 57600 : 115200;
-  s.settle_s = o->protocol.settle_s;
-  read_param(dn, "port", &s.port);
-  read_param(dn, "baud", &s.baud);
-  s.xon_xoff = driver == "smc100";
-  read_param(dn, "xon_xoff", &s.xon_xoff);
-  read_param(dn, "connect_timeout_s", &s.connect_timeout_s);
-  read_param(dn, "reply_timeout_s", &s.reply_timeout_s);
-  read_param(dn, "poll_interval_s", &s.poll_interval_s);
-  read_param(dn, "tolerance_deg", &s.tolerance_deg);
-  read_param(dn, "settle_s", &s.settle_s);
-  read_param(dn, "home_at_start", &s.home_at_start);
-  read_param(dn, "home_timeout_s", &s.home_timeout_s);
-  read_param(dn, "unlock_at_start", &s.unlock_at_start);
-  read_param(dn, "reset_at_start", &s.reset_at_start);
-  for (int p = 0; p < 3; ++p) {
-    const std::string key = std::string("phases/") + "xyz"[p];
-    if (!dn.hasParam(key)) {
-      throw ParamError("parameter " + param_name(dn, key) + " is missing: the axis map of phase " +
-                       "xyz"[p] + " (see config/" + driver + "_gimbal.yaml)");
-    }
-    const ros::NodeHandle ph(dn, key);
-    PhaseAxes& axes = s.axis_map.phases[p];
-    XmlRpc::XmlRpcValue axis;
-    if (ph.getParam("axis", axis)) {
-      if (axis.getType() == XmlRpc::XmlRpcValue::TypeString) {
-        axes.axis = static_cast<std::string>(axis);
-      } else if (axis.getType() == XmlRpc::XmlRpcValue::TypeInt) {
-        axes.axis = std::to_string(static_cast<int>(axis));
-      } else {
-        throw ParamError("parameter " + param_name(ph, "axis") +
-                         " must be an axis letter (grbl) or a controller address (smc100)");
-      }
-    }
-    read_param(ph, "sign", &axes.sign);
-    read_param(ph, "zero_deg", &axes.zero_deg);
-    read_param(ph, "manual_remount", &axes.manual_remount);
-    XmlRpc::XmlRpcValue hold;
-    if (ph.getParam("hold", hold)) {
-      if (hold.getType() != XmlRpc::XmlRpcValue::TypeStruct) {
-        throw ParamError("parameter " + param_name(ph, "hold") +
-                         " must be a map axis: position_deg ({Y: 90.0})");
-      }
-      for (auto it = hold.begin(); it != hold.end(); ++it) {
-        const XmlRpc::XmlRpcValue& v = it->second;
-        if (v.getType() == XmlRpc::XmlRpcValue::TypeDouble) {
-          axes.hold[it->first] = static_cast<double>(const_cast<XmlRpc::XmlRpcValue&>(v));
-        } else if (v.getType() == XmlRpc::XmlRpcValue::TypeInt) {
-          axes.hold[it->first] = static_cast<int>(const_cast<XmlRpc::XmlRpcValue&>(v));
-        } else {
-          throw ParamError("parameter " + param_name(ph, "hold/" + it->first) +
-                           " must be a number (deg)");
-        }
-      }
-    }
-  }
-  try {
-    s.validate();
-    s.axis_map.validate({});
-  } catch (const std::invalid_argument& e) {
-    throw ParamError("parameter " + dn.getNamespace() + "/" + e.what());
-  }
-}
-
-}  // namespace
 
 GimbalControllerOptions GimbalControllerOptions::load(const ros::NodeHandle& pnh) {
   GimbalControllerOptions o;
@@ -118,9 +45,18 @@ GimbalControllerOptions GimbalControllerOptions::load(const ros::NodeHandle& pnh
   require(o.resume_approach == 1 || o.resume_step < o.protocol.steps_per_phase, pnh,
           "resume_approach", "the closing position is only approached from below (+1)");
   read_param(pnh, "driver", &o.driver);
-  require(o.driver == "simulated" || o.driver == "grbl" || o.driver == "smc100", pnh, "driver",
-          "unknown gimbal driver '" + o.driver + "' (known: simulated, grbl, smc100)");
-  if (o.driver != "simulated") read_serial_options(pnh, o.driver, &o);
+  const GimbalDriverRow* row = find_gimbal_driver(o.driver);
+  require(row != nullptr, pnh, "driver",
+          "unknown gimbal driver '" + o.driver + "' (known: " + gimbal_driver_names() + ")");
+  GimbalDriverDefaults defaults;
+  defaults.move_s = o.protocol.move_s;
+  defaults.settle_s = o.protocol.settle_s;
+  defaults.phase_change_s = o.protocol.phase_change_s;
+  try {
+    o.driver_options = row->read_options(RosDriverParams(pnh), defaults);
+  } catch (const std::invalid_argument& e) {
+    throw ParamError(e.what());
+  }
   read_param(pnh, "world_frame", &o.world_frame);
   read_param(pnh, "gimbal_frame", &o.gimbal_frame);
   read_param(pnh, "dut_frame", &o.dut_frame);
@@ -128,44 +64,24 @@ GimbalControllerOptions GimbalControllerOptions::load(const ros::NodeHandle& pnh
   require(!o.gimbal_frame.empty(), pnh, "gimbal_frame", "must not be empty");
   require(!o.dut_frame.empty(), pnh, "dut_frame", "must not be empty");
 
-  // The simulated gimbal: by default it moves and settles in the protocol's times.
-  const ros::NodeHandle sim(pnh, "simulated");
-  o.simulated.move_s = o.protocol.move_s;
-  o.simulated.settle_s = o.protocol.settle_s;
-  o.simulated.phase_change_s = o.protocol.phase_change_s;
-  read_param(sim, "move_s", &o.simulated.move_s);
-  read_param(sim, "settle_s", &o.simulated.settle_s);
-  read_param(sim, "phase_change_s", &o.simulated.phase_change_s);
-  read_param(sim, "ringing_rad", &o.simulated.ringing_rad);
-  read_param(sim, "ringing_hz", &o.simulated.ringing_hz);
-  read_effects(sim, "effects", &o.simulated.effects);
-  read_param(sim, "never_settle_phase", &o.simulated.never_settle_phase);
-  read_param(sim, "never_settle_at_step", &o.simulated.never_settle_at_step);
-  try {
-    o.simulated.validate();
-  } catch (const std::invalid_argument& e) {
-    throw ParamError("parameter " + sim.getNamespace() + "/" + e.what());
-  }
   return o;
 }
 
 std::unique_ptr<GimbalDriver> make_gimbal_driver(const GimbalControllerOptions& options) {
-  if (options.driver == "simulated") {
-    return std::unique_ptr<GimbalDriver>(new SimulatedGimbalDriver(options.simulated));
+  const GimbalDriverRow* row = find_gimbal_driver(options.driver);
+  if (row == nullptr) {
+    throw ParamError("unknown gimbal driver '" + options.driver + "' (known: " +
+                     gimbal_driver_names() + ")");
   }
-  // A serial gimbal that cannot be brought up (port missing, no reply, alarm at start) keeps the
-  // node from starting, with the device's words.
+  // A gimbal that cannot be brought up (port missing, no reply, alarm at start) keeps the node
+  // from starting, with the device's words.
   try {
-    if (options.driver == "grbl") {
-      return std::unique_ptr<GimbalDriver>(new GrblDriver(options.serial));
-    }
-    if (options.driver == "smc100") {
-      return std::unique_ptr<GimbalDriver>(new Smc100Driver(options.serial));
-    }
+    return row->make(options.driver_options);
   } catch (const GimbalFault& e) {
     throw ParamError(std::string("the gimbal did not start: ") + e.what());
+  } catch (const std::bad_any_cast&) {
+    throw ParamError("the options of gimbal driver '" + options.driver + "' were not read");
   }
-  throw ParamError("unknown gimbal driver '" + options.driver + "'");
 }
 
 }  // namespace accel_intrinsics

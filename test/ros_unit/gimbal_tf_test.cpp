@@ -55,11 +55,17 @@ Eigen::Vector3d force_in_dut(const Eigen::Matrix3d& R_world_dut) {
 
 }  // namespace
 
-TEST(GimbalTf, MountsAreProperRotations) {
+TEST(GimbalTf, LinksAreProperRotationsAboutTheStageAxes) {
+  // world -> gimbal turns about world x (the outer axis X), gimbal -> dut about z (inner axis Y).
   for (core::Phase p : core::kPhases) {
-    const Eigen::Matrix3d M = ai::mount_rotation(p);
-    EXPECT_NEAR(M.determinant(), 1.0, 1e-15);
-    EXPECT_TRUE((M * M.transpose()).isApprox(Eigen::Matrix3d::Identity(), 1e-15));
+    for (double a : {0.0, 0.7, 2.0, 4.5}) {
+      const ai::GimbalTransforms t = ai::gimbal_transforms(p, a, 0.0);
+      const Eigen::Matrix3d W = t.world_gimbal.toRotationMatrix();
+      const Eigen::Matrix3d M = t.gimbal_dut.toRotationMatrix();
+      EXPECT_NEAR(M.determinant(), 1.0, 1e-12);
+      EXPECT_NEAR((W * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX()).norm(), 0.0, 1e-12);
+      EXPECT_NEAR((M * Eigen::Vector3d::UnitZ() - Eigen::Vector3d::UnitZ()).norm(), 0.0, 1e-12);
+    }
   }
 }
 

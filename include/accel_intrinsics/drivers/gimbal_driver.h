@@ -1,14 +1,15 @@
 // The gimbal behind an interface (hardware behind an interface, injected): the
 // controller node drives any GimbalDriver; SimulatedGimbalDriver is the default backend.
 //
-// Frames (REP 103, z up in world): world -> gimbal -> dut.
-//   world -> gimbal: the gimbal's rotation axis is the gimbal x axis, horizontal along world x
-//                    (raised by the axis tilt tau toward world z), turned by the gimbal angle.
-//   gimbal -> dut:   the mount of the DUT for the phase, which puts the DUT's own p axis on the
-//                    gimbal axis (a remount between phases).
-// The chain is built so that the specific force in the DUT frame, R_world_dut^T (0, 0, g), is
+// Frames (REP 103, z up in world): world -> gimbal -> dut, the stage kinematics of
+// core/model/gimbal_kinematics.h (R_world_dut = Rx(X) Rz(Y), docs/design.md section 15):
+//   world -> gimbal: the outer stage axis X (along world x; raised by the axis tilt of the
+//                    simulated gimbal), turned by X.
+//   gimbal -> dut:   the inner stage axis Y, turned by Y.
+// With the default axis map the specific force in the DUT frame, R_world_dut^T (0, 0, g), is
 // docs/design.md eq. (4) at the TRUE angle: x: g(0, sin a, cos a), y: g(sin a, 0, cos a),
-// z: g(sin a, cos a, 0), with the tilt applied as in model.h (test/ros_unit/gimbal_tf_test.cpp).
+// z: g(sin a, cos a, 0), with the tilt applied as in model.h (test/ros_unit/gimbal_tf_test.cpp,
+// test/core/model/stage_kinematics_test.cpp).
 #pragma once
 
 #include <Eigen/Core>
@@ -35,13 +36,12 @@ struct GimbalTransforms {
   }
 };
 
-// Mount rotation R_gimbal_dut for a phase (a proper rotation: a permutation with signs).
-Eigen::Matrix3d mount_rotation(core::Phase phase);
-// Gimbal angle theta (about the gimbal x axis) that realizes DUT angle alpha in a phase.
-double gimbal_angle(core::Phase phase, double true_angle_rad);
 // The tf chain for a DUT turned about its own `phase` axis to the TRUE angle alpha, with the
-// rotation axis raised by tilt_rad from horizontal.
+// rotation axis raised by tilt_rad from horizontal (core::phase_pose, the stage kinematics).
 GimbalTransforms gimbal_transforms(core::Phase phase, double true_angle_rad, double tilt_rad);
+// The tf chain of a pose R_world_dut, split at the inner stage axis of `phase` at alpha.
+GimbalTransforms split_at_inner_axis(const Eigen::Matrix3d& world_dut, core::Phase phase,
+                                     double alpha_rad);
 
 // The target, the fault and the protocol's part of the interface are declared in the core, which
 // cannot include this header (core/gimbal_protocol.h says why); here they keep their names.
@@ -49,13 +49,37 @@ using core::GimbalFault;
 using core::GimbalTarget;
 using core::target_of;
 
+// ROS topics a driver talks over (ros_joint, manual); the node wires them (names relative to the
+// controller's namespace). Serial and simulated drivers use none.
+struct GimbalDriverTopics {
+  std::string joint_states;                 // sensor_msgs/JointState in ("" none)
+  std::vector<std::string> command_topics;  // std_msgs/Float64 out, rad
+  std::string imu;                          // sensor_msgs/Imu in ("" none)
+};
+// What the node carries out for such a driver.
+class GimbalLinks {
+ public:
+  virtual ~GimbalLinks() = default;
+  // Publishes a joint position command (rad) on one of topics().command_topics.
+  virtual void publish_command(const std::string& topic, double position_rad) = 0;
+};
+
 // A gimbal the controller drives: what the protocol needs (core::GimbalMotion: name, move_to,
-// settled, settled_at, stop, update, manual_remount, recover, status_text) and the DUT's true
-// orientation for tf.
+// settled, settled_at, stop, update, manual_remount, recover, status_text, the operator calls)
+// and the DUT's true orientation for tf; a driver that talks over ROS topics names them and
+// takes what arrives as plain calls (the node converts the messages), so it stays ROS-free.
 class GimbalDriver : public core::GimbalMotion {
  public:
   // True orientation of the DUT at t_s (encoders on hardware; the model in simulation).
   virtual GimbalTransforms orientation(double t_s) const = 0;
+  virtual GimbalDriverTopics topics() const { return {}; }
+  // The node's links, before the first move; `links` outlives the driver's use of it.
+  virtual void connect(GimbalLinks* /*links*/) {}
+  // A sensor_msgs/JointState received at t_s (node clock): names and positions (rad).
+  virtual void on_joint_state(double /*t_s*/, const std::vector<std::string>& /*names*/,
+                              const std::vector<double>& /*positions_rad*/) {}
+  // A sensor_msgs/Imu received at t_s: linear_acceleration (R_u, R_v, R_w).
+  virtual void on_imu(double /*t_s*/, const Eigen::Vector3d& /*outputs*/) {}
 };
 
 // The simulated gimbal. Its effects are the gimbal side of docs/design.md section 3 and are read from

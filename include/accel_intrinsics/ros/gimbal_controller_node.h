@@ -11,10 +11,15 @@
 // the MOVING (or DONE) it published. gimbal_controller/abort (std_srvs/Trigger, as start) aborts
 // by hand; gimbal_controller/abort_run (srv/AbortRun.srv) aborts with a reason.
 //
-// Hardware (docs/design.md section 10): ~driver grbl or smc100 drive a serial gimbal (serial_gimbal.h)
-// configured under ~grbl/... or ~smc100/... (port, timeouts, settling, homing, and the per-phase
-// axis map ~<driver>/phases/{x,y,z}: axis, sign, zero_deg, hold, manual_remount). A fault of the
-// device aborts the run with the device's words. Before a phase that needs a manual remount the
+// Hardware (docs/design.md sections 10 and 15): ~driver picks a row of the gimbal driver table
+// (drivers/gimbal_driver_table.h: simulated, grbl, smc100, ros_joint, manual), configured under
+// ~<driver>/... (for the serial ones port, timeouts, settling, homing; for every hardware one the
+// per-phase axis map ~<driver>/phases/{x,y,z}: axis, sign, zero_deg, hold, manual_remount). A
+// fault of the device aborts the run with the device's words. A driver that talks over ROS
+// topics names them (GimbalDriver::topics()): the node subscribes JointState (ros_joint) or the
+// IMU (manual) for it and publishes its Float64 joint commands. The manual driver waits for the
+// operator at each position in WAIT_OPERATOR (progress carries the request and the target's
+// stage positions, stage_<axis>_deg) until gimbal_controller/continue. Before a phase that needs a manual remount the
 // controller publishes MOVING for the phase's first position (closing the last dwell), turns the
 // stage to that position, and waits in state REMOUNT (progress topic) until
 // gimbal_controller/continue (std_srvs/Trigger); then the move is issued again and settles.
@@ -25,6 +30,8 @@
 #include <std_srvs/Trigger.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include <any>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -50,9 +57,8 @@ struct GimbalControllerOptions {
   std::string resume_phase;          // "" (from the start) or x|y|z: first position of a run
   std::uint32_t resume_step = 0;     // 0..N-1, or N: the closing position (closing_position)
   int resume_approach = +1;          // +1: the up sweep, -1: the return sweep (two_way)
-  std::string driver = "simulated";  // gimbal backend
-  SimulatedGimbalOptions simulated;  // ~simulated/...: move and settling model, gimbal effects
-  SerialGimbalOptions serial;        // ~grbl/... or ~smc100/...: port, settling, axis map
+  std::string driver = "simulated";  // a row of gimbal_driver_table()
+  std::any driver_options;           // what the row's reader made of ~<driver>/...
   std::string world_frame = "world";
   std::string gimbal_frame = "gimbal";
   std::string dut_frame = "dut";
@@ -67,12 +73,13 @@ tf2_msgs::TFMessage make_tf_message(const GimbalTransforms& transforms, const ro
                                     const std::string& world_frame, const std::string& gimbal_frame,
                                     const std::string& dut_frame);
 
-// The backend named by options.driver (gimbal_controller_options.cpp); throws ParamError for an unknown name.
+// The backend named by options.driver (its row of gimbal_driver_table()); throws ParamError for
+// an unknown name or a device that does not start.
 std::unique_ptr<GimbalDriver> make_gimbal_driver(const GimbalControllerOptions& options);
 
 // The shell around core::GimbalProtocol (the state machine, core/gimbal_protocol.h): parameters,
 // the timer, the services, gimbal/command, tf, progress and diagnostics.
-class GimbalControllerNode {
+class GimbalControllerNode : public GimbalLinks {
  public:
   using State = core::ProtocolState;
 
@@ -99,6 +106,8 @@ class GimbalControllerNode {
   }
 
   State state() const { return protocol_->state(); }
+  // GimbalLinks: a joint command of the driver.
+  void publish_command(const std::string& topic, double position_rad) override;
   static const char* state_name(State state) { return core::protocol_state_name(state); }
 
  private:
@@ -114,12 +123,16 @@ class GimbalControllerNode {
   bool reply(const core::ProtocolReply& r, const ros::Time& now, std::string* message);
   void publish_tf(const ros::Time& now);
   void publish_progress(const ros::Time& now, const core::ProtocolStatus& status, bool log);
+  // Subscriptions and publishers of a driver that talks over ROS topics.
+  void wire_driver_topics();
 
   ros::NodeHandle nh_, pnh_;
   GimbalControllerOptions options_;
   std::unique_ptr<GimbalDriver> driver_;
   std::unique_ptr<core::GimbalProtocol> protocol_;
   ros::Publisher command_pub_, tf_pub_, progress_pub_;
+  std::map<std::string, ros::Publisher> joint_command_pubs_;
+  ros::Subscriber joint_state_sub_, imu_sub_;
   ros::ServiceServer start_srv_, abort_srv_, abort_run_srv_, resume_srv_, continue_srv_;
   ros::Timer timer_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;

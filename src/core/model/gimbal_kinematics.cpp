@@ -1,5 +1,6 @@
 #include "accel_intrinsics/core/model/gimbal_kinematics.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 
@@ -45,6 +46,44 @@ DwellGeometry geometry_of(const GimbalPose& pose, double time_s) {
   geom.time_s = time_s;
   geom.approach = pose.approach;
   return geom;
+}
+
+Eigen::Matrix3d stage_rotation(const StageAngles& stage) {
+  return (Eigen::AngleAxisd(stage.x_rad, Eigen::Vector3d::UnitX()) *
+          Eigen::AngleAxisd(stage.y_rad, Eigen::Vector3d::UnitZ()))
+      .toRotationMatrix();
+}
+
+StageAngles default_stage_angles(Phase phase, double alpha_rad) {
+  StageAngles s;
+  switch (phase) {
+    case Phase::X: s.x_rad = alpha_rad; break;
+    case Phase::Y:
+      s.x_rad = alpha_rad;
+      s.y_rad = kPi / 2.0;
+      break;
+    case Phase::Z:
+    default:
+      s.x_rad = kPi / 2.0;
+      s.y_rad = alpha_rad;
+      break;
+  }
+  return s;
+}
+
+Eigen::Matrix3d phase_pose(Phase phase, double alpha_rad, double tilt_rad) {
+  const Eigen::Matrix3d R = stage_rotation(default_stage_angles(phase, alpha_rad));
+  if (tilt_rad == 0.0) return R;
+  // The turning axis u = R e_p is horizontal (x: +x, y: -x, z: -y in the world). A rotation by
+  // tilt about k = u x e_z takes u to cos(tilt) u + sin(tilt) e_z and scales the vertical part of
+  // every vector normal to u by cos(tilt): f_p = g sin(tilt), f_q = cos(tilt) f_q(untilted).
+  const Eigen::Vector3d u = R.col(index(phase));
+  const Eigen::Vector3d k = u.cross(Eigen::Vector3d::UnitZ()).normalized();
+  return Eigen::AngleAxisd(tilt_rad, k).toRotationMatrix() * R;
+}
+
+Eigen::Vector3d specific_force_in_dut(const Eigen::Matrix3d& R_world_dut, double g) {
+  return R_world_dut.transpose() * Eigen::Vector3d(0.0, 0.0, g);
 }
 
 double move_fraction(double t_s, double move_start_s, double settled_s) {

@@ -237,7 +237,7 @@ RunActions CalibrationRun::on_controller_state(const std::string& state,
   // A running controller never goes back to IDLE by itself: a new process has taken its place
   // (respawned after a crash). The run it drove is still open here: continue it (at tick()).
   const bool was_running = controller_state_ == "MOVING" || controller_state_ == "SETTLED" ||
-                           controller_state_ == "REMOUNT";
+                           controller_state_ == "REMOUNT" || controller_state_ == "WAIT_OPERATOR";
   if (state == "IDLE" && was_running && !done_pending_ && !assembler_.done() && !has_result() &&
       fault_.empty() && controller_abort_.empty()) {
     controller_restarted_ = true;
@@ -265,7 +265,8 @@ RunActions CalibrationRun::on_controller_state(const std::string& state,
       controller_abort_ = reason;
       if (fault_.empty()) log(RunAction::Level::Error, "the gimbal controller aborted: " + reason);
     }
-  } else if (state == "STARTING" || state == "MOVING" || state == "SETTLED" || state == "REMOUNT") {
+  } else if (state == "STARTING" || state == "MOVING" || state == "SETTLED" || state == "REMOUNT" ||
+             state == "WAIT_OPERATOR") {
     controller_abort_.clear();
   }
   return take_actions();

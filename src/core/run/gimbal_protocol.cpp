@@ -51,6 +51,7 @@ const char* protocol_state_name(ProtocolState state) {
     case ProtocolState::Remount: return "REMOUNT";
     case ProtocolState::Done: return "DONE";
     case ProtocolState::Aborted: return "ABORTED";
+    case ProtocolState::WaitOperator: return "WAIT_OPERATOR";
   }
   return "?";
 }
@@ -76,7 +77,7 @@ GimbalProtocol::GimbalProtocol(const GimbalProtocolOptions& options, GimbalMotio
 
 bool GimbalProtocol::running() const {
   return state_ == ProtocolState::Moving || state_ == ProtocolState::Dwelling ||
-         state_ == ProtocolState::Remount;
+         state_ == ProtocolState::Remount || state_ == ProtocolState::WaitOperator;
 }
 
 void GimbalProtocol::start_next_run_at(std::size_t index) {
@@ -164,6 +165,18 @@ ProtocolReply GimbalProtocol::abort(double now_s, const std::string& reason) {
 
 ProtocolReply GimbalProtocol::continue_after_remount(double now_s) {
   ProtocolReply r;
+  if (state_ == ProtocolState::WaitOperator) {
+    // The operator has set the stage: the gimbal checks the pose (MOVING until it settles).
+    gimbal_->operator_continue(now_s);
+    state_ = ProtocolState::Moving;
+    state_since_s_ = now_s;
+    r.success = true;
+    r.message = std::string("checking the pose of phase ") + phase_name(schedule_[index_].phase) +
+                " step " + std::to_string(schedule_[index_].step);
+    r.actions.push_back(log_action(ProtocolAction::Level::Info, r.message));
+    progress(now_s, false, &r.actions);
+    return r;
+  }
   if (state_ != ProtocolState::Remount) {
     r.message = std::string("not waiting for a remount (") + protocol_state_name(state_) + ")";
     return r;
@@ -287,7 +300,18 @@ ProtocolActions GimbalProtocol::tick(double now_s) {
       }
       break;
     case ProtocolState::Moving:
-      if (gimbal_->settled(now_s)) {
+      if (gimbal_->needs_operator(now_s)) {
+        // A gimbal turned by hand: wait for the operator (no settle timeout).
+        state_ = ProtocolState::WaitOperator;
+        state_since_s_ = now_s;
+        ++operator_waits_;
+        const std::string complaint = gimbal_->operator_complaint();
+        out.push_back(log_action(
+            complaint.empty() ? ProtocolAction::Level::Info : ProtocolAction::Level::Warn,
+            (complaint.empty() ? "" : complaint + "; ") + gimbal_->operator_request() +
+                ", then call " + options_.continue_service));
+        changed = true;
+      } else if (gimbal_->settled(now_s)) {
         // Stamped when the gimbal settled, which the driver may know better than this tick
         // (the simulated one does; the timing-lag estimator reads the move from these stamps).
         double stamp_s = now_s;
@@ -354,6 +378,7 @@ double GimbalProtocol::time_left_s(double now_s) const {
     case ProtocolState::Starting: return total + std::max(0.0, start_at_s_ - now_s);
     case ProtocolState::Moving:
     case ProtocolState::Remount:
+    case ProtocolState::WaitOperator:
       return std::max(0.0, total - std::min(p.settled_s, p.move_start_s + since));
     case ProtocolState::Dwelling:
       return std::max(0.0, total - std::min(p.dwell_end_s, p.settled_s + since));
@@ -380,9 +405,16 @@ ProtocolStatus GimbalProtocol::status(double now_s) const {
       state_ == ProtocolState::Moving && st.in_state_s > 0.5 * options_.settle_timeout_s;
   st.resumes = resumes_;
   st.last_error = last_error_;
-  st.level = state_ == ProtocolState::Aborted   ? ProtocolStatus::Level::Error
-             : state_ == ProtocolState::Remount ? ProtocolStatus::Level::Warn
-                                                : ProtocolStatus::Level::Ok;
+  st.operator_waits = operator_waits_;
+  if (state_ == ProtocolState::WaitOperator) {
+    st.operator_request = gimbal_->operator_request();
+    st.operator_complaint = gimbal_->operator_complaint();
+    st.stage_deg = gimbal_->operator_targets_deg();
+  }
+  st.level = state_ == ProtocolState::Aborted ? ProtocolStatus::Level::Error
+             : state_ == ProtocolState::Remount || state_ == ProtocolState::WaitOperator
+                 ? ProtocolStatus::Level::Warn
+                 : ProtocolStatus::Level::Ok;
   const ScheduledPosition& p = st.position;
   std::ostringstream text;
   text << protocol_state_name(state_);
@@ -394,6 +426,11 @@ ProtocolStatus GimbalProtocol::status(double now_s) const {
   if (state_ == ProtocolState::Remount) {
     text << ": remount the DUT to turn about its own " << phase_name(p.phase)
          << " axis, then call " << options_.continue_service;
+  }
+  if (state_ == ProtocolState::WaitOperator) {
+    text << ": ";
+    if (!st.operator_complaint.empty()) text << st.operator_complaint << "; ";
+    text << st.operator_request << ", then call " << options_.continue_service;
   }
   st.text = text.str();
   return st;

@@ -42,6 +42,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -96,10 +97,24 @@ class GimbalMotion {
   virtual void recover(double /*t_s*/) {}
   // The device's latest status in its own words ("" when it has none), for messages.
   virtual std::string status_text() const { return ""; }
+
+  // A gimbal turned by hand (the manual driver, docs/design.md section 15): true while the
+  // operator must set the stage to the last target. The protocol then waits in WAIT_OPERATOR (no
+  // settle timeout) until operator_continue(), and again whenever this turns true while MOVING
+  // (the pose check found another pose).
+  virtual bool needs_operator(double /*t_s*/) const { return false; }
+  // The operator says the stage is set (gimbal_controller/continue).
+  virtual void operator_continue(double /*t_s*/) {}
+  // What the operator is asked ("phase x: set X to 60.0 deg"), and why again when the last
+  // pose was wrong (operator_complaint); the stage positions of the target, deg per axis.
+  virtual std::string operator_request() const { return ""; }
+  virtual std::string operator_complaint() const { return ""; }
+  virtual std::map<std::string, double> operator_targets_deg() const { return {}; }
 };
 
-enum class ProtocolState { Idle, Starting, Moving, Dwelling, Remount, Done, Aborted };
-// IDLE, STARTING, MOVING, SETTLED (Dwelling), REMOUNT, DONE, ABORTED: the progress topic's words.
+enum class ProtocolState { Idle, Starting, Moving, Dwelling, Remount, Done, Aborted, WaitOperator };
+// IDLE, STARTING, MOVING, SETTLED (Dwelling), REMOUNT, DONE, ABORTED, WAIT_OPERATOR: the progress
+// topic's words.
 const char* protocol_state_name(ProtocolState state);
 
 struct GimbalProtocolOptions {
@@ -129,6 +144,12 @@ struct ProtocolStatus {
   bool slow_to_settle = false;   // moving for more than half of settle_timeout_s
   std::uint64_t resumes = 0;
   std::string last_error;
+  // WAIT_OPERATOR: what the operator is asked, why again (the pose check), the target's stage
+  // positions (deg per axis) and how many waits the run has had (a new one each time).
+  std::string operator_request;
+  std::string operator_complaint;
+  std::map<std::string, double> stage_deg;
+  std::uint64_t operator_waits = 0;
   Level level = Level::Ok;
   std::string text;  // "MOVING phase x step 3/24", "ABORTED: <reason>", the remount request
 };
@@ -169,7 +190,8 @@ class GimbalProtocol {
   ProtocolReply start(double now_s);
   // Stops a run; publishes DONE to close the open dwell (not while still starting).
   ProtocolReply abort(double now_s, const std::string& reason);
-  // Ends a manual remount: the stage moves to the phase's first position again and settles.
+  // Ends a manual remount: the stage moves to the phase's first position again and settles. In
+  // WAIT_OPERATOR: the operator has set the stage; the gimbal checks the pose and settles.
   ProtocolReply continue_after_remount(double now_s);
   // Moves to schedule position `index` now and continues from there, from any state; index ==
   // schedule().size() publishes DONE. The message ends with "stamp=<now_s>".
@@ -208,6 +230,7 @@ class GimbalProtocol {
   bool autostart_pending_ = false;
   std::size_t start_index_ = 0;    // where the next start begins
   std::uint64_t resumes_ = 0;
+  std::uint64_t operator_waits_ = 0;
   bool faulted_ = false;  // the gimbal raised a GimbalFault: recover() before moving again
 };
 
