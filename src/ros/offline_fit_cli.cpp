@@ -98,6 +98,9 @@ bool parse_offline_fit_arguments(const std::vector<std::string>& arguments,
                  "budget and expanded uncertainties (k = 2) to the result");
   app.add_option("--report", args->report_pdf,
                  "write a calibration certificate (PDF) from the result");
+  app.add_flag("--draft", args->report_draft,
+               "--report: make the PDF even when a certificate is refused (standard g with a "
+               "small g uncertainty, the template's certificate block), DRAFT on every page");
   auto* archive = app.add_option("--archive", args->archive,
                                  "add the result to the lab archive (sqlite:///PATH or "
                                  "postgresql://...; scripts/archive)")
