@@ -136,7 +136,8 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
       out << "\n    " << noise_axis_words(core::accelerometer_name(s), r.noise_model.axes[s],
                                           r.noise_model.rate_hz, output_unit);
     }
-  }  out << "\n";
+  }
+  out << "\n";
   out.flush();
 }
 
