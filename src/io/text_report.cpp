@@ -44,6 +44,7 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
                       const std::string& output_unit) {
   const core::Intrinsics& in = r.intrinsics;
   out << "accel_intrinsics offline_fit\n";
+  if (!context.device_serial.empty()) out << "device:        " << context.device_serial << "\n";
   if (context.input) {
     out << "input:         " << context.input->summary << "\n";
     if (!context.complete) {

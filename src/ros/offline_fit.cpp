@@ -632,6 +632,7 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   }
   check_phases(input.table, options.fit.model, options.fit.min_positions_per_phase, &input.context);
   input.context.certificate = budget_file.certificate;
+  input.context.device_serial = args.device;  // --device (with --archive); "" = omitted
   input.context.gravity_source = args.gravity_given
                                      ? "offline_fit --gravity"
                                      : "standard gravity (offline_fit default; no --gravity given)";
