@@ -35,7 +35,8 @@ TEST(TextReport, ParameterTableStatesTheFitInItsUnits) {
   for (std::string line; std::getline(lines, line);) {
     std::istringstream f(line);
     std::string name, pm, value_text, u_text;
-    if (f >> name >> value_text >> pm >> u_text && pm == "+-") {
+    // (not the rows of S and P, "[ x +- u, ...]": checked below)
+    if (f >> name >> value_text >> pm >> u_text && pm == "+-" && name != "[") {
       table[name] = {std::stod(value_text), std::stod(u_text)};
       std_text[name] = u_text;
       // The value has as many decimals as its uncertainty.
@@ -72,6 +73,29 @@ TEST(TextReport, ParameterTableStatesTheFitInItsUnits) {
     const std::string o = std::string("O_") + axes[i];
     ASSERT_TRUE(table.count(o)) << out.str();
     expect_rounded(o, fit.O(i), fit.O_std(i));
+  }
+  // The rows of P: each element rounded to its standard uncertainty.
+  const std::size_t p_at = out.str().find("cross-sensitivity P");
+  ASSERT_NE(p_at, std::string::npos) << out.str();
+  std::istringstream p_rows(out.str().substr(p_at));
+  std::string p_line;
+  std::getline(p_rows, p_line);  // the heading
+  for (int row = 0; row < 3; ++row) {
+    ASSERT_TRUE(std::getline(p_rows, p_line));
+    std::string text = p_line;
+    for (char& ch : text)
+      if (ch == '[' || ch == ']' || ch == ',') ch = ' ';
+    std::istringstream f(text);
+    for (int c = 0; c < 3; ++c) {
+      std::string v, pm, u;
+      ASSERT_TRUE(f >> v >> pm >> u) << p_line;
+      EXPECT_EQ(pm, "+-") << p_line;
+      const double step = std::pow(10.0, -static_cast<int>(u.size() - u.find('.') - 1));
+      EXPECT_LE(std::abs(std::stod(v) - fit.cross_sensitivity(row, c)), 0.5 * step * (1 + 1e-9))
+          << p_line;
+      EXPECT_LE(std::abs(std::stod(u) - fit.cross_sensitivity_std(row, c)), 0.5 * step * (1 + 1e-9))
+          << p_line;
+    }
   }
   // No line prints more than 8 significant digits (the JSON has them all).
   EXPECT_EQ(out.str().find("0000000"), std::string::npos) << out.str();

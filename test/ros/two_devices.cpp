@@ -31,19 +31,19 @@ std::map<std::string, std::string> snapshot(const fs::path& dir) {
   return files;
 }
 
-struct Run {
+struct RunFiles {
   fs::path dir;
   nlohmann::json supervise;  // supervise --json's document
 };
 
-Run supervise(const std::string& device, const fs::path& output_dir, double timeout_s) {
+RunFiles supervise(const std::string& device, const fs::path& output_dir, double timeout_s) {
   const fs::path json = output_dir / ("supervise_" + device + ".json");
   const std::string command = "rosrun accel_intrinsics supervise --quiet --device " + device +
                               " --timeout " + std::to_string(timeout_s) + " --json " +
                               json.string();
   const stand_checks::CommandResult r = stand_checks::run(command);
   EXPECT_EQ(r.exit_code, 0) << command << "\n" << r.output;
-  Run run;
+  RunFiles run;
   const fs::path latest = output_dir / device / "latest";
   EXPECT_TRUE(fs::is_symlink(fs::symlink_status(latest))) << latest;
   if (fs::exists(latest)) run.dir = fs::canonical(latest);
@@ -51,7 +51,7 @@ Run supervise(const std::string& device, const fs::path& output_dir, double time
   return run;
 }
 
-void expect_complete(const Run& run, const std::string& device, int steps) {
+void expect_complete(const RunFiles& run, const std::string& device, int steps) {
   ASSERT_FALSE(run.dir.empty()) << device;
   // output_dir/<device>/<UTC time, ISO 8601 basic>
   EXPECT_EQ(run.dir.parent_path().filename(), device);
@@ -96,12 +96,12 @@ TEST(TwoDevices, EachRunKeepsItsOwnCompleteDirectory) {
   ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
   ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(60.0)));
 
-  const Run a = supervise("A", output_dir, timeout_s);
+  const RunFiles a = supervise("A", output_dir, timeout_s);
   expect_complete(a, "A", steps);
   if (HasFatalFailure()) return;
   const std::map<std::string, std::string> a_files = snapshot(a.dir);
 
-  const Run b = supervise("B", output_dir, timeout_s);  // resets the node first
+  const RunFiles b = supervise("B", output_dir, timeout_s);  // resets the node first
   expect_complete(b, "B", steps);
   if (HasFatalFailure()) return;
   EXPECT_NE(a.dir, b.dir);
