@@ -340,6 +340,8 @@ def make_record(result, device=None, rig=None, when=None, position_table_text=No
             raise ArchiveError("--device '%s' differs from the result's certificate serial '%s'"
                                % (device, serial))
         serial = device
+    if not serial and str(result.get("device_serial", "")).strip() not in ("", "unnamed"):
+        serial = str(result["device_serial"]).strip()  # the calibration node's ~device_serial
     if not serial:
         raise ArchiveError("no device serial: give --device SERIAL (or a budget file whose "
                            "certificate block has `serial`)")

@@ -293,6 +293,24 @@ void add_tumble_keys(const core::CalibrationReport& report, const ResultContext&
   }
 }
 
+// The unit of each number of the document (output_unit: the device's output, e.g. m/s^2, g,
+// counts). Every std key has its value's unit.
+nlohmann::json units_json(const std::string& output_unit) {
+  const std::string out = output_unit.empty() ? "m/s^2" : output_unit;
+  return {{"responsivity", out + "/(m/s^2)"},
+          {"vectors", out + "/(m/s^2)"},
+          {"offset", out},
+          {"offset_per_phase", out},
+          {"cross_sensitivity", "(m/s^2)/" + out},
+          {"angles_deg", "deg"},
+          {"local_gravity", "m/s^2"},
+          {"residual_rms", out},
+          {"noise_density", out + "/sqrt(Hz)"},
+          {"sample_rate_hz", "Hz"},
+          {"stamp", "s (ROS time)"},
+          {"time_utc", "ISO 8601, UTC"}};
+}
+
 }  // namespace
 
 namespace detail {
@@ -396,6 +414,14 @@ nlohmann::json result_document(const core::CalibrationReport& report,
     j["certificate"] = fields;
   }
   if (!context.gravity_source.empty()) j["local_gravity_source"] = context.gravity_source;
+  j["units"] = units_json(report.output_unit);
+  for (const auto& [key, value] :
+       {std::pair<const char*, const std::string*>{"device_serial", &context.device_serial},
+        {"imu_topic", &context.imu_topic},
+        {"gimbal_driver", &context.gimbal_driver},
+        {"time_utc", &context.time_utc}}) {
+    if (!value->empty()) j[key] = *value;
+  }
   if (std::isfinite(context.stamp_s)) j["stamp"] = context.stamp_s;
   if (context.samples) j["samples"] = counters_json(*context.samples);
   if (context.input) {

@@ -8,14 +8,43 @@
 #include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/model/protocol.h"
 #include "accel_intrinsics/io/analysis_report.h"
+#include "accel_intrinsics/io/rounding.h"
 
 namespace accel_intrinsics {
 namespace io {
+
+std::string noise_axis_words(const std::string& axis, const core::AxisNoiseModel& a,
+                             double rate_hz, const std::string& unit) {
+  const std::string density_unit = unit == "m/s^2" ? "(m/s^2)" : unit;
+  std::string words = axis + ":";
+  std::string separator = " ";
+  if (a.white_std > 0.0 && rate_hz > 0.0) {
+    words += separator + "white " + two_significant(a.white_std / std::sqrt(rate_hz)) + " " +
+             density_unit + "/sqrt(Hz)";
+    separator = "; ";
+  }
+  if (a.gm_sigma > 0.0 && a.gm_tau_s > 0.0) {
+    words += separator + "Gauss-Markov " + two_significant(a.gm_sigma) + " " + unit + " over " +
+             two_significant(a.gm_tau_s) + " s";
+    separator = "; ";
+  }
+  if (a.rw_density > 0.0) {
+    words += separator + "random walk " + two_significant(a.rw_density) + " " + density_unit +
+             "/sqrt(s)";
+    separator = "; ";
+  }
+  if (!a.slow()) words += separator + "no slow part";
+  if (a.slow() && a.slow_scale_rel_var > 0.0)  // as estimated from the data (noise.h)
+    words += " (relative std of its scale " + two_significant(std::sqrt(a.slow_scale_rel_var)) +
+             ")";
+  return words;
+}
 
 void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultContext& context,
                       const std::string& output_unit) {
   const core::Intrinsics& in = r.intrinsics;
   out << "accel_intrinsics offline_fit\n";
+  if (!context.device_serial.empty()) out << "device:        " << context.device_serial << "\n";
   if (context.input) {
     out << "input:         " << context.input->summary << "\n";
     if (!context.complete) {
@@ -33,11 +62,13 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
         << r.positions[2] << "\n\n";
   }
 
+  // Each value rounded to its uncertainty (io/rounding.h); the JSON keeps full precision.
   auto line = [&out](const std::string& name, double value, double std_value,
                      const std::string& unit) {
-    out << "  " << std::left << std::setw(18) << name << std::right << std::setw(20)
-        << std::setprecision(12) << value << "  +- " << std::left << std::setw(12)
-        << std::setprecision(3) << std_value << std::right << " " << unit << "\n";
+    const Rounded r = round_to_uncertainty(value, std_value);
+    out << "  " << std::left << std::setw(18) << name << std::right << std::setw(20) << r.value
+        << "  +- " << std::left << std::setw(12) << r.uncertainty << std::right << " " << unit
+        << "\n";
   };
   out << "  " << std::left << std::setw(18) << "parameter" << std::right << std::setw(20) << "value"
       << "     std (k=1)\n";
@@ -66,42 +97,46 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
     line(r.effects[i].label(), r.effects[i].value,
          i < r.effects_std.size() ? r.effects_std[i] : NAN, "");
   }
+  // Rows rounded to their standard uncertainties (the JSON has every digit).
   out << (r.model == core::FitModel::Tumble
-              ? "\n  vectors (rows of S, sensor frame: u along x, v in the x-y plane):\n"
-              : "\n  vectors (rows of S, DUT frame x y z):\n");
+              ? "\n  vectors (rows of S, sensor frame: u along x, v in the x-y plane), +- std:\n"
+              : "\n  vectors (rows of S, DUT frame x y z), +- std:\n");
   for (int s = 0; s < 3; ++s) {
     out << "    " << core::accelerometer_name(s) << " = [";
     for (int c = 0; c < 3; ++c) {
-      out << (c ? ", " : "") << std::setw(17) << std::setprecision(10) << r.S(s, c);
+      const double var = r.covariance.rows() > 3 * s + c ? r.covariance(3 * s + c, 3 * s + c) : NAN;
+      out << (c ? ", " : "") << std::setw(22)
+          << with_uncertainty(r.S(s, c), var >= 0.0 ? std::sqrt(var) : NAN);
     }
     out << "]\n";
   }
-  out << "  cross-sensitivity P = S^-1 (row-major):\n";
+  out << "  cross-sensitivity P = S^-1 (row-major), +- std:\n";
   for (int s = 0; s < 3; ++s) {
     out << "    [";
     for (int c = 0; c < 3; ++c) {
-      out << (c ? ", " : "") << std::setw(17) << std::setprecision(10) << r.cross_sensitivity(s, c);
+      out << (c ? ", " : "") << std::setw(22)
+          << with_uncertainty(r.cross_sensitivity(s, c), r.cross_sensitivity_std(s, c));
     }
     out << "]\n";
   }
-  out << "\n  reduced chi2:  " << std::setprecision(6) << r.reduced_chi2 << " (chi2 " << r.chi2
-      << ", dof " << r.dof << ")\n";
-  out << "  residual rms:  " << std::setprecision(6) << r.residual_rms << " " << output_unit << "\n";
+  out << "\n  reduced chi2:  " << std::setprecision(3) << r.reduced_chi2 << " (chi2 "
+      << std::setprecision(4) << r.chi2 << ", dof " << r.dof << ")\n";
+  out << "  residual rms:  " << two_significant(r.residual_rms) << " " << output_unit << "\n";
   // The noise the weights assumed (docs/design.md section 12): white, or the model of the long rest.
   out << "  noise model:   " << r.noise_model.kind();
   if (!r.noise_model.white()) {
-    out << std::setprecision(3) << " (" << r.noise_model.source
-        // The joint fit weights by the covariance between dwells; eq4 and the tumble fit add
-        // the slow part to each dwell's variance (fit.cpp, tumble.cpp).
-        << (r.model == core::FitModel::Joint ? "; generalized least squares"
-                                              : "; slow part added to each dwell's variance")
-        << "; u v w: Gauss-Markov sigma";
-    for (const core::AxisNoiseModel& a : r.noise_model.axes) out << " " << a.gm_sigma;
-    out << " " << output_unit << ", tau";
-    for (const core::AxisNoiseModel& a : r.noise_model.axes) out << " " << a.gm_tau_s;
-    out << " s, random walk";
-    for (const core::AxisNoiseModel& a : r.noise_model.axes) out << " " << a.rw_density;
-    out << " " << output_unit << "/sqrt(s))";
+    // How the fit used it (fit.cpp): the joint and the tumble fits by generalized least squares
+    // (the covariance between dwells, or rests); eq4 adds the slow part to each dwell's variance.
+    out << " ("
+        << (r.model == core::FitModel::Eq4      ? "slow part added to each dwell's variance"
+            : r.model == core::FitModel::Tumble ? "generalized least squares across the rests"
+                                                : "generalized least squares across the dwells")
+        << ")";
+    if (!r.noise_model.source.empty()) out << "\n    from " << r.noise_model.source;
+    for (int s = 0; s < 3; ++s) {
+      out << "\n    " << noise_axis_words(core::accelerometer_name(s), r.noise_model.axes[s],
+                                          r.noise_model.rate_hz, output_unit);
+    }
   }
   out << "\n";
   out.flush();

@@ -31,10 +31,20 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
       pnh_(pnh),
       options_(options),
       run_(options.run),
-      files_(options.output_dir, options.file_prefix) {
+      files_("", options.file_prefix),
+      runs_(options.output_dir),
+      new_run_pending_(runs_.enabled()),
+      device_serial_(options.device_serial) {
   if (options_.resume) {
+    // The checkpoint of the device's newest run (its `latest` link).
+    const std::string latest = runs_.latest_run(device_serial_);
+    if (!latest.empty()) {
+      files_ = io::CheckpointFiles(latest, options_.file_prefix);
+      new_run_pending_ = false;
+    }
     const std::string param = param_name(pnh_, "resume");
-    carry_out(restore_from_checkpoint(&files_, options_.output_dir, &run_, param), nullptr);
+    const std::string where = latest.empty() ? runs_.device_dir(device_serial_) : latest;
+    carry_out(restore_from_checkpoint(&files_, where, &run_, param), nullptr);
   }
   result_pub_ = nh_.advertise<IntrinsicResult>(names::kResultTopic, 1, true);
   status_pub_ =
@@ -243,13 +253,21 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
       switch (a.kind) {
         case Kind::Log: log_run_action(a); break;
         case Kind::DwellAccepted:
+          ensure_run_directory();
           files_.append_row(a.row);
           ROS_INFO("calibration: %s", a.text.c_str());
           break;
-        case Kind::CheckpointState: files_.write_state(run_.checkpoint_state()); break;
+        case Kind::CheckpointState:
+          ensure_run_directory();
+          files_.write_state(run_.checkpoint_state());
+          break;
         case Kind::ClearCheckpoint: {
-          // A new run (or a reset): its files, its result and any fit still running go.
-          files_.clear();
+          // A new run (or a reset): its result and any fit still running go; its files stay in
+          // their run directory, and the next run writes into a new one.
+          if (runs_.enabled()) {
+            files_ = io::CheckpointFiles("", options_.file_prefix);
+            new_run_pending_ = true;
+          }
           result_ = IntrinsicResult();
           ++resets_;
           std::lock_guard<std::mutex> job_lock(job_mutex_);
@@ -325,15 +343,46 @@ void CalibrationNode::publish_certificate(const core::CalibrationReport& report,
       static_cast<std::size_t>(result_.positions[0] + result_.positions[1] + result_.positions[2]),
       result_.responsivity[0], result_.responsivity[1], result_.responsivity[2],
       result_.angles_deg[0], result_.angles_deg[1], result_.angles_deg[2], result_.reduced_chi2);
+  ensure_run_directory();
   if (files_.enabled()) {
-    io::ResultContext context;
-    context.stamp_s = stamp.toSec();
+    io::ResultContext context = result_context(stamp);
     context.samples = counters;
-    context.certificate = options_.certificate;
-    context.gravity_source = options_.gravity_source;
     if (!write_result_files(files_, options_.exports, report, context)) return;
-    archive_result_file(options_.archive, options_.archive_device, options_.archive_rig,
-                        files_.result_path(), files_.table_path());
+    const std::string device = !options_.archive_device.empty() ? options_.archive_device
+                               : device_serial_ != io::kUnnamedDevice ? device_serial_
+                                                                      : "";
+    archive_result_file(options_.archive, device, options_.archive_rig, files_.result_path(),
+                        files_.table_path());
+  }
+}
+
+io::ResultContext CalibrationNode::result_context(const ros::Time& stamp) const {
+  io::ResultContext context;
+  context.stamp_s = stamp.toSec();
+  context.certificate = options_.certificate;
+  context.gravity_source = options_.gravity_source;
+  context.device_serial = device_serial_;
+  context.imu_topic = nh_.resolveName(names::kImuTopic);
+  std::string driver = "simulated";  // the controller's default
+  nh_.getParamCached(options_.gimbal_controller + "/driver", driver);
+  context.gimbal_driver = driver;
+  context.time_utc = io::utc_iso_time(ros::WallTime::now().toSec());
+  return context;
+}
+
+void CalibrationNode::ensure_run_directory() {
+  if (!new_run_pending_) return;
+  // supervise --device sets ~device_serial before it starts a run: read it now.
+  std::string serial = options_.device_serial;
+  pnh_.getParam("device_serial", serial);
+  try {
+    const std::string dir = runs_.start_run(serial, ros::WallTime::now().toSec());
+    files_ = io::CheckpointFiles(dir, options_.file_prefix);
+    device_serial_ = serial;
+    new_run_pending_ = false;
+    ROS_INFO("calibration: device %s: this run writes into %s", serial.c_str(), dir.c_str());
+  } catch (const io::IoError& e) {
+    ROS_ERROR_THROTTLE(10.0, "calibration: %s", e.what());
   }
 }
 
@@ -343,11 +392,11 @@ std::string CalibrationNode::publish_analysis(const core::CalibrationReport& rep
     ROS_ERROR("calibration: analysis failed: %s", report.analysis_error.c_str());
     return "analysis failed: " + report.analysis_error;
   }
-  io::ResultContext context;
-  context.stamp_s = stamp.toSec();
+  const io::ResultContext context = result_context(stamp);
   std_msgs::String msg;
   msg.data = io::analysis_json_text(report, context);
   analysis_pub_.publish(msg);
+  ensure_run_directory();
   if (files_.enabled()) io::write_file_atomically(files_.analysis_path(), msg.data + "\n");
   const std::string summary = io::analysis_summary_line(report);
   ROS_INFO("calibration: analysis: %s", summary.c_str());

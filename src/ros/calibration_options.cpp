@@ -152,6 +152,8 @@ CalibrationOptions CalibrationOptions::load(const ros::NodeHandle& pnh) {
   }
   require(o.exports.empty() || !o.output_dir.empty(), pnh, "exports",
           "needs output_dir (the files are written there)");
+  read_param(pnh, "device_serial", &o.device_serial);
+  require(!o.device_serial.empty(), pnh, "device_serial", "must not be empty");
   read_param(pnh, "archive", &o.archive);
   read_param(pnh, "archive_device", &o.archive_device);
   read_param(pnh, "archive_rig", &o.archive_rig);

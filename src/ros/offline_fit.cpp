@@ -182,7 +182,8 @@ void check_command_line(const OfflineFitArguments& args) {
 // of the JSON; the script writes the PDF atomically and prints one line on failure.
 void write_certificate(const std::string& json, const core::PositionTable& table,
                        const core::FitResult& certificate, const std::string& pdf,
-                       const std::string& result_name, const std::string& history_archive) {
+                       const std::string& result_name, const std::string& history_archive,
+                       bool draft) {
   const std::string tmp = pdf + ".json.tmp." + std::to_string(::getpid());
   const std::string residuals = pdf + ".residuals.tmp." + std::to_string(::getpid());
   io::write_file_atomically(tmp, json);
@@ -191,9 +192,14 @@ void write_certificate(const std::string& json, const core::PositionTable& table
                                           "--result-name", result_name, tmp};
   // the device's history page, from the archive this result just went into
   if (!history_archive.empty()) report_args.insert(report_args.begin(), {"--history-archive", history_archive});
+  if (draft) report_args.insert(report_args.begin(), "--draft");
   const int status = run_package_script("certificate_report", report_args);
   std::remove(tmp.c_str());
   std::remove(residuals.c_str());
+  if (status == 3) {  // refused; the script named why and how to fix it
+    throw Failure{kOfflineFitBadInput, "--report: no certificate (see above; --draft makes one "
+                                       "marked DRAFT)"};
+  }
   if (status != 0) {
     throw Failure{kOfflineFitBadInput, "--report: " + package_script("certificate_report") +
                                            " failed (exit status " + std::to_string(status) +
@@ -277,6 +283,7 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   }
   check_phases(input.table, options.fit.model, options.fit.min_positions_per_phase, &input.context);
   input.context.certificate = budget_file.certificate;
+  input.context.device_serial = args.device;  // --device (with --archive); "" = omitted
   input.context.gravity_source = args.gravity_given
                                      ? "offline_fit --gravity"
                                      : "standard gravity (offline_fit default; no --gravity given)";
@@ -359,7 +366,7 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
     write_certificate(json, input.table, report.certificate, args.report_pdf,
                       args.json_out.empty() || json_to_stdout ? "(not saved: offline_fit --json)"
                                                               : args.json_out,
-                      archived ? args.archive : "");
+                      archived ? args.archive : "", args.report_draft);
 
   io::write_text_report(json_to_stdout ? err : out, report, input.context);
   if (json_to_stdout) out << json << std::flush;

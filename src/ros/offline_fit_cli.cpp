@@ -102,6 +102,9 @@ bool parse_offline_fit_arguments(const std::vector<std::string>& arguments,
                  "write the residuals of the fit (and, with --analyze, of the refit with the "
                  "named effects) per dwell and accelerometer as CSV, for scripts/plot_residuals")
       ->type_name("FILE");
+  app.add_flag("--draft", args->report_draft,
+               "--report: make the PDF even when a certificate is refused (standard g with a "
+               "small g uncertainty, the template's certificate block), DRAFT on every page");
   auto* archive = app.add_option("--archive", args->archive,
                                  "add the result to the lab archive (sqlite:///PATH or "
                                  "postgresql://...; scripts/archive)")

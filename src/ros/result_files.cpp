@@ -70,8 +70,10 @@ bool write_result_files(const io::CheckpointFiles& files,
                         const core::CalibrationReport& report, const io::ResultContext& context) {
   if (!files.enabled()) return false;
   try {
+    io::write_result_json(files.result_json_path(), report, context);
     io::write_result_yaml(files.result_path(), report, context);
-    ROS_INFO("calibration: wrote %s", files.result_path().c_str());
+    ROS_INFO("calibration: wrote %s and %s", files.result_json_path().c_str(),
+             files.result_path().c_str());
   } catch (const io::IoError& e) {
     ROS_ERROR("calibration: %s", e.what());
     return false;

@@ -36,7 +36,8 @@ TumbleCalibrationNode::TumbleCalibrationNode(ros::NodeHandle nh, ros::NodeHandle
     : nh_(nh),
       pnh_(pnh),
       options_(options),
-      files_(options.common.output_dir, options.common.file_prefix),
+      files_("", options.common.file_prefix),
+      runs_(options.common.output_dir),
       session_(options.session) {
   progress_pub_ = nh_.advertise<std_msgs::String>(kTumbleProgressTopic, 1, true);
   result_pub_ = nh_.advertise<IntrinsicResult>(names::kResultTopic, 1, true);
@@ -99,6 +100,22 @@ bool TumbleCalibrationNode::fit_and_publish(std::string* message) {
   context.stamp_s = result_.header.stamp.toSec();
   context.certificate = options_.common.certificate;
   context.gravity_source = options_.common.gravity_source;
+  std::string serial = options_.common.device_serial;
+  pnh_.getParam("device_serial", serial);
+  context.device_serial = serial;
+  context.imu_topic = nh_.resolveName(names::kImuTopic);
+  context.gimbal_driver = "none (hand tumble)";
+  context.time_utc = io::utc_iso_time(ros::WallTime::now().toSec());
+  if (new_run_pending_ && runs_.enabled()) {
+    // The session's own directory; later fits of the same session replace its files.
+    try {
+      files_ = io::CheckpointFiles(runs_.start_run(serial, ros::WallTime::now().toSec()),
+                                   options_.common.file_prefix);
+      new_run_pending_ = false;
+    } catch (const io::IoError& e) {
+      ROS_ERROR("calibration: %s", e.what());
+    }
+  }
   core::RestDetection rests;
   rests.rests = session_.table().rows;
   rests.rejected = session_.detector().rejected();
@@ -141,6 +158,7 @@ bool TumbleCalibrationNode::on_reset(std_srvs::Trigger::Request&, std_srvs::Trig
   std::lock_guard<std::mutex> lock(mutex_);
   const std::size_t rests = session_.table().rows.size();
   session_.reset();
+  new_run_pending_ = true;  // the next result goes into a new run directory
   have_result_ = false;
   target_fitted_ = false;
   publish_progress();

@@ -4,6 +4,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "stand_checks.h"
+#include "run_dirs.h"
 
 TEST(AnalysisNode, NamesTheHiddenEffectAndTheCertificateSaysWhichModel) {
   ros::NodeHandle pnh("~");
@@ -69,10 +70,10 @@ TEST(AnalysisNode, NamesTheHiddenEffectAndTheCertificateSaysWhichModel) {
   EXPECT_EQ(last["name"], "timing_lag");
   EXPECT_EQ(last["target"], "all");
   std::printf("timing lag from the live node: %s\n", lag["message"].get<std::string>().c_str());
-  std::ifstream file(output_dir + "/analysis.json");
+  std::ifstream file(run_dirs::latest(output_dir) + "/analysis.json");
   ASSERT_TRUE(file.good());
   EXPECT_EQ(nlohmann::json::parse(file)["certificate_model"], r.model);
-  std::ifstream yaml(output_dir + "/intrinsics.yaml");
+  std::ifstream yaml(run_dirs::latest(output_dir) + "/intrinsics.yaml");
   std::string text((std::istreambuf_iterator<char>(yaml)), std::istreambuf_iterator<char>());
   // The refit is the certificate: its model and its fitted term (io/result_document.h keys).
   EXPECT_NE(text.find("certificate_model: joint+quadratic_nonlinearity[u]"), std::string::npos)

@@ -22,6 +22,7 @@
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/core/model/protocol.h"
 #include "wait_for.h"
+#include "run_dirs.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
@@ -278,7 +279,7 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
   }
 
   // The position table checkpoint: one row per dwell, exact assignment.
-  std::ifstream csv(output_dir_ + "/position_table.csv");
+  std::ifstream csv(run_dirs::latest(output_dir_) + "/position_table.csv");
   ASSERT_TRUE(csv.good()) << output_dir_;
   std::string line;
   ASSERT_TRUE(std::getline(csv, line));
@@ -303,15 +304,15 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
     ++row;
   }
   EXPECT_EQ(row, expected.size());
-  std::ifstream yaml(output_dir_ + "/intrinsics.yaml");
+  std::ifstream yaml(run_dirs::latest(output_dir_) + "/intrinsics.yaml");
   EXPECT_TRUE(yaml.good());
   // The exports of the `exports` parameter: imu_calib's SM is P = S^-1 of the result.
-  const YAML::Node calib = YAML::LoadFile(output_dir_ + "/imu_calib.yaml");
+  const YAML::Node calib = YAML::LoadFile(run_dirs::latest(output_dir_) + "/imu_calib.yaml");
   ASSERT_EQ(calib["SM"].size(), 9u);
   for (int i = 0; i < 9; ++i) {
     EXPECT_NEAR(calib["SM"][i].as<double>(), r.cross_sensitivity[i], 1e-12) << i;
   }
-  std::ifstream px4(output_dir_ + "/px4.params");
+  std::ifstream px4(run_dirs::latest(output_dir_) + "/px4.params");
   std::stringstream px4_text;
   px4_text << px4.rdbuf();
   EXPECT_NE(px4_text.str().find("CAL_ACC0_XSCALE"), std::string::npos);
@@ -352,8 +353,7 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
 TEST_F(CalibrationNodeTest, AResultFailingTheQualityGateIsNoCalibration) {
   std_srvs::Trigger reset;
   ASSERT_TRUE(reset_.call(reset));
-  for (const char* name : {"imu_calib.yaml", "px4.params", "intrinsics.yaml"})
-    std::remove((output_dir_ + "/" + name).c_str());
+  // The run after the reset writes into a directory of its own: no file of an earlier run there.
   S_.row(2) *= 0.3;
   const Eigen::Vector3d delta(0.01, 0.02, 0.03);
   double t = 1000.0;
@@ -398,10 +398,10 @@ TEST_F(CalibrationNodeTest, AResultFailingTheQualityGateIsNoCalibration) {
   EXPECT_FALSE(r.result.quality_pass);
   EXPECT_NEAR(r.result.responsivity[2], S_.row(2).norm(), 1e-6);
   // The result file is there, marked failing; the exports are not.
-  const YAML::Node written = YAML::LoadFile(output_dir_ + "/intrinsics.yaml");
+  const YAML::Node written = YAML::LoadFile(run_dirs::latest(output_dir_) + "/intrinsics.yaml");
   EXPECT_FALSE(written["quality"]["pass"].as<bool>());
   for (const char* name : {"imu_calib.yaml", "px4.params"}) {
-    std::ifstream f(output_dir_ + "/" + name);
+    std::ifstream f(run_dirs::latest(output_dir_) + "/" + name);
     EXPECT_FALSE(f.good()) << name << " written for a result that fails the gate";
   }
   // The status: the run is over, and its result is no calibration.

@@ -32,6 +32,7 @@ void on_diagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) {
 }  // namespace
 
 #include "stand_checks.h"
+#include "run_dirs.h"
 
 TEST(EndToEnd, SuperviseThenServiceMatchTruth) {
   ros::NodeHandle pnh("~");
@@ -66,9 +67,9 @@ TEST(EndToEnd, SuperviseThenServiceMatchTruth) {
   EXPECT_EQ(latched->responsivity, res.result.responsivity);
 
   // Checkpoints and result files.
-  EXPECT_EQ(stand_checks::count_csv_rows(output_dir + "/position_table.csv"),
+  EXPECT_EQ(stand_checks::count_csv_rows(run_dirs::latest(output_dir) + "/position_table.csv"),
             static_cast<std::size_t>(3 * steps));
-  std::ifstream yaml(output_dir + "/intrinsics.yaml");
+  std::ifstream yaml(run_dirs::latest(output_dir) + "/intrinsics.yaml");
   EXPECT_TRUE(yaml.good());
 
   // No bad samples on a healthy stand.

@@ -7,6 +7,7 @@
 #include <mutex>
 
 #include "stand_checks.h"
+#include "run_dirs.h"
 
 namespace {
 std::mutex mutex;
@@ -54,7 +55,7 @@ TEST(FleetSim, EightRigsAtOneKilohertzAllMatchTheirTruth) {
     ASSERT_TRUE(res.success) << ns << ": " << res.message;
     stand_checks::expect_matches_truth(res.result, truth, limits, ns);
     for (int p = 0; p < 3; ++p) EXPECT_EQ(res.result.positions[p], static_cast<unsigned>(steps)) << ns;
-    EXPECT_EQ(stand_checks::count_csv_rows(output_dir + "/" + ns + "/position_table.csv"),
+    EXPECT_EQ(stand_checks::count_csv_rows(run_dirs::latest(output_dir + "/" + ns) + "/position_table.csv"),
               static_cast<std::size_t>(3 * steps))
         << ns;
     // Each calibration node saw the full rate (sensor time).

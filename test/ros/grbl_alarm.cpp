@@ -1,5 +1,6 @@
 // A serial fault on the GRBL gimbal: see test/ros/grbl_alarm.test and fault_checks.h.
 #include "fault_checks.h"
+#include "run_dirs.h"
 
 TEST(SerialFault, grbl_alarm) {
   fault_checks::check_case();
@@ -7,7 +8,7 @@ TEST(SerialFault, grbl_alarm) {
   // move that failed) reach the checkpointed table once the reorder window has passed.
   std::string output_dir;
   ASSERT_TRUE(ros::NodeHandle("~").getParam("output_dir", output_dir));
-  const std::string table = output_dir + "/position_table.csv";
+  const std::string table = run_dirs::latest(output_dir) + "/position_table.csv";
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(20.0);
   while (stand_checks::count_csv_rows(table) < 7 && ros::WallTime::now() < end) {
     ros::WallDuration(0.2).sleep();

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "kill_mid_protocol.h"
+#include "run_dirs.h"
 
 namespace {
 using accel_intrinsics::GimbalCommand;
@@ -85,7 +86,7 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
   if (HasFatalFailure()) return;
   const std::size_t commands_at_kill = commands_seen();
   // The checkpoint as the killed node leaves it: the run continues after its last row.
-  const std::size_t rows_at_kill = checkpoint_rows(output_dir + "/position_table.csv");
+  const std::size_t rows_at_kill = checkpoint_rows(run_dirs::latest(output_dir) + "/position_table.csv");
   ASSERT_LT(rows_at_kill, static_cast<std::size_t>(kill_position)) << "the cut dwell is not in it";
   const int pid = test_wait::node_pid("/calibration");
   ASSERT_GT(pid, 1);
@@ -155,7 +156,7 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
       << "the rewound protocol does not start after the checkpoint's last row";
 
   // The table: every position once, in order, each a complete dwell of the rewound protocol.
-  core::PositionTable table = core::read_position_table_file(output_dir + "/position_table.csv");
+  core::PositionTable table = core::read_position_table_file(run_dirs::latest(output_dir) + "/position_table.csv");
   ASSERT_EQ(table.rows.size(), static_cast<std::size_t>(3 * steps));
   for (std::size_t r = 0; r < table.rows.size(); ++r) {
     const core::DwellRecord& row = table.rows[r];

@@ -19,6 +19,7 @@
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "stand_checks.h"
 #include "wait_for.h"
+#include "run_dirs.h"
 
 namespace {
 std::mutex mutex;
@@ -185,7 +186,7 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
 
   // The checkpoint: every position once, in protocol order, and the run's time origin.
   namespace core = accel_intrinsics::core;
-  core::PositionTable table = core::read_position_table_file(output_dir + "/position_table.csv");
+  core::PositionTable table = core::read_position_table_file(run_dirs::latest(output_dir) + "/position_table.csv");
   ASSERT_EQ(table.rows.size(), static_cast<std::size_t>(3 * steps));
   for (std::size_t i = 0; i < table.rows.size(); ++i) {
     EXPECT_EQ(core::index(table.rows[i].phase), static_cast<int>(i) / steps) << "row " << i;
@@ -194,7 +195,7 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
       EXPECT_GT(table.rows[i].t_start_s, table.rows[i - 1].t_end_s - 1e-9) << "row " << i;
     }
   }
-  const YAML::Node state = YAML::LoadFile(output_dir + "/calibration_state.yaml");
+  const YAML::Node state = YAML::LoadFile(run_dirs::latest(output_dir) + "/calibration_state.yaml");
   ASSERT_GT(first_moving_stamp, 0.0);
   EXPECT_DOUBLE_EQ(state["time_origin_s"].as<double>(), first_moving_stamp);
   EXPECT_TRUE(state["done"].as<bool>());

@@ -12,6 +12,7 @@
 
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "stand_checks.h"
+#include "run_dirs.h"
 
 namespace {
 std::mutex readings_mutex;
@@ -63,7 +64,7 @@ TEST(LiveTemperature, EachDwellRecordsTheMeanOfItsReadings) {
   stand_checks::supervise_and_check({""}, limits, timeout_s, output_dir + "/supervise.json");
 
   const accel_intrinsics::core::PositionTable table =
-      accel_intrinsics::core::read_position_table_file(output_dir + "/position_table.csv");
+      accel_intrinsics::core::read_position_table_file(run_dirs::latest(output_dir) + "/position_table.csv");
   ASSERT_EQ(table.rows.size(), static_cast<std::size_t>(3 * steps));
   std::lock_guard<std::mutex> lock(readings_mutex);
   ASSERT_GT(readings.size(), 20u);
@@ -90,7 +91,7 @@ TEST(LiveTemperature, EachDwellRecordsTheMeanOfItsReadings) {
   EXPECT_GT(highest - lowest, 1.0);
 
   // The result file states the run's temperatures.
-  std::ifstream yaml(output_dir + "/intrinsics.yaml");
+  std::ifstream yaml(run_dirs::latest(output_dir) + "/intrinsics.yaml");
   std::stringstream text;
   text << yaml.rdbuf();
   EXPECT_NE(text.str().find("dwells_with_temperature: " + std::to_string(3 * steps)),

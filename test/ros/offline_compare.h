@@ -162,7 +162,11 @@ inline void expect_equal(const accel_intrinsics::IntrinsicResult& online, const 
 // description. Every other key is shared and must mean the same (io/result_document.h).
 // local_gravity_source is on both sides but says where each tool got g (a parameter, a flag).
 inline bool node_only_key(const std::string& key) {
-  return key == "stamp" || key == "samples" || key == "local_gravity_source";
+  // ... and what the node knows of its stand (docs/design.md section 15): the device's serial,
+  // the IMU topic, the gimbal driver, the UTC time the file was written.
+  return key == "stamp" || key == "samples" || key == "local_gravity_source" ||
+         key == "device_serial" || key == "imu_topic" || key == "gimbal_driver" ||
+         key == "time_utc";
 }
 inline bool offline_only_key(const std::string& key) {
   return key == "input" || key == "complete" || key == "warnings" || key == "local_gravity_source";

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "offline_compare.h"
+#include "run_dirs.h"
 
 namespace oc = offline_compare;
 
@@ -91,7 +92,7 @@ TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
   // fitted_effects, certificate_model, ...), value for value; only stamp and samples (node) and
   // input, complete, warnings (offline_fit) are one side's own.
   if (!online_dir.empty()) {
-    const std::string yaml_path = online_dir + "/intrinsics.yaml";
+    const std::string yaml_path = run_dirs::latest(online_dir) + "/intrinsics.yaml";
     const ros::WallTime written_by = ros::WallTime::now() + ros::WallDuration(10.0);
     while (ros::WallTime::now() < written_by && !oc::file_exists(yaml_path))
       ros::WallDuration(0.1).sleep();
@@ -111,7 +112,7 @@ TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
 
   // The dwells themselves: the node's checkpoint file and offline_fit's table, byte for byte.
   if (!online_dir.empty()) {
-    const std::string online_csv = oc::read_file(online_dir + "/position_table.csv");
+    const std::string online_csv = oc::read_file(run_dirs::latest(online_dir) + "/position_table.csv");
     ASSERT_FALSE(online_csv.empty());
     EXPECT_EQ(online_csv, oc::read_file(csv_path));
   }

@@ -19,6 +19,9 @@
 #include "accel_intrinsics/core/model/protocol.h"
 #include "stand_checks.h"
 #include "wait_for.h"
+#include "run_dirs.h"
+
+#include <filesystem>
 
 namespace {
 using accel_intrinsics::GimbalCommand;
@@ -58,8 +61,9 @@ double wgs84_normal_gravity(double latitude_deg, double h) {
 }  // namespace
 
 // gimbal_controller ~resume_phase y, ~resume_step 3: the first command of the run is the MOVING
-// to y/3, the table fills from there; then calibration/reset removes the checkpoint files.
-TEST(StandPromises, ResumeParamsStartTheRunThereAndResetDeletesTheCheckpoint) {
+// to y/3, the table fills from there; then calibration/reset keeps the run's files in its run
+// directory (a reset never deletes a run: docs/design.md section 15) and starts no new one.
+TEST(StandPromises, ResumeParamsStartTheRunThereAndResetKeepsTheRun) {
   ros::NodeHandle nh, pnh("~");
   std::string output_dir, resume_phase = "y";
   int resume_step = 3;
@@ -72,8 +76,8 @@ TEST(StandPromises, ResumeParamsStartTheRunThereAndResetDeletesTheCheckpoint) {
   ros::Subscriber st = nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status_value);
   stand_checks::reset_and_start();
   if (HasFatalFailure()) return;
-  const std::string table = output_dir + "/position_table.csv";
-  const std::string state = output_dir + "/calibration_state.yaml";
+  const std::string table = run_dirs::latest(output_dir) + "/position_table.csv";
+  const std::string state = run_dirs::latest(output_dir) + "/calibration_state.yaml";
   // Two dwells checkpointed.
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
   while (stand_checks::count_csv_rows(table) < 2 && ros::WallTime::now() < deadline) {
@@ -103,10 +107,13 @@ TEST(StandPromises, ResumeParamsStartTheRunThereAndResetDeletesTheCheckpoint) {
   // The calibration node has taken in the controller's abort (its status names it).
   ASSERT_TRUE(test_wait::wait_for([] { return !status_value("fault").empty(); }, 60.0,
                                   "calibration/status to name the controller's abort"));
+  const std::string run = std::filesystem::canonical(run_dirs::latest(output_dir)).string();
+  const std::size_t rows_at_reset = stand_checks::count_csv_rows(table);
   ASSERT_TRUE(ros::service::call("/calibration/reset", reset));
   EXPECT_TRUE(reset.response.success) << reset.response.message;
-  EXPECT_FALSE(exists(table)) << table << " survived calibration/reset";
-  EXPECT_FALSE(exists(state)) << state << " survived calibration/reset";
+  EXPECT_EQ(stand_checks::count_csv_rows(run + "/position_table.csv"), rows_at_reset)
+      << run << ": calibration/reset changed the run's table";
+  EXPECT_TRUE(exists(run + "/calibration_state.yaml")) << run << ": the state went at the reset";
   // Still gone once the node has run on past its reorder window (a command still in flight at
   // the reset would have been released by then) and two status periods: a status of the node
   // stamped that late (the run ticks, and writes its checkpoint, in the same timer callback).
@@ -120,8 +127,11 @@ TEST(StandPromises, ResumeParamsStartTheRunThereAndResetDeletesTheCheckpoint) {
         return !stamp.empty() && std::stod(stamp) >= until_s;
       },
       60.0, "a calibration/status stamped " + std::to_string(until_s) + " s (reset + window)"));
-  EXPECT_FALSE(exists(table)) << table << " came back after calibration/reset";
-  EXPECT_FALSE(exists(state)) << state << " came back after calibration/reset";
+  // No command in flight at the reset started a new run (a new directory behind `latest`), and
+  // none added to the old one.
+  EXPECT_EQ(std::filesystem::canonical(run_dirs::latest(output_dir)).string(), run)
+      << "a new run directory appeared after calibration/reset";
+  EXPECT_EQ(stand_checks::count_csv_rows(run + "/position_table.csv"), rows_at_reset) << run;
 }
 
 // calibration ~latitude_deg, ~height_m (and no local_gravity): the fit uses WGS 84 normal gravity

@@ -21,6 +21,7 @@
 #include "accel_intrinsics/core/noise/noise.h"
 #include "accel_intrinsics/core/dwells/rest_detection.h"
 #include "accel_intrinsics/core/dwells/samples_file.h"
+#include "run_dirs.h"
 
 namespace accel_intrinsics {
 namespace {
@@ -138,11 +139,11 @@ TEST(TumbleLive, ReplayedSessionGivesRestsProgressAndTheFit) {
   EXPECT_LT(r.reduced_chi2, 2.0);  // white weights: 16.6 (docs/finding_the_missing_effect.md)
   std::string output_dir;
   ASSERT_TRUE(nh.getParam("calibration/output_dir", output_dir));
-  EXPECT_TRUE(std::filesystem::exists(output_dir + "/intrinsics.yaml")) << output_dir;
+  EXPECT_TRUE(std::filesystem::exists(run_dirs::latest(output_dir) + "/intrinsics.yaml")) << output_dir;
   // The live session kept its first rest's raw samples and weighed the fit with their noise
   // model as offline_fit does: the rest the same (live and batch rests start alike to a sample),
   // the model not white, fitted again to the tumble.
-  const YAML::Node result = YAML::LoadFile(output_dir + "/intrinsics.yaml");
+  const YAML::Node result = YAML::LoadFile(run_dirs::latest(output_dir) + "/intrinsics.yaml");
   ASSERT_TRUE(result["noise_model"].IsMap()) << output_dir;
   EXPECT_NE(result["noise_model"]["kind"].as<std::string>(), "white");
   EXPECT_NEAR(result["noise_model"]["rest"]["samples"].as<double>(),

@@ -25,6 +25,8 @@ class CheckpointFiles {
   std::string table_path() const { return path("position_table.csv"); }
   std::string state_path() const { return path("calibration_state.yaml"); }
   std::string result_path() const { return path("intrinsics.yaml"); }
+  // The same document as JSON (io::write_result_json; supervise --json prints it).
+  std::string result_json_path() const { return path("result.json"); }
   std::string analysis_path() const { return path("analysis.json"); }
   // Any other file of the run in output_dir, e.g. an export (io::export_file_name).
   std::string file_path(const char* name) const { return path(name); }

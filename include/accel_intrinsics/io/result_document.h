@@ -29,7 +29,10 @@
 //     std}], rejected_spans [{t_start, t_end, reason}], rest_detection {quiet_std, rate_hz, ...}
 //     (found in a stream); with --analyze, the tumble screen as effects, ambiguous, gap,
 //     not_screened, screening (core/tumble_analysis.h)
-//   from the context: local_gravity_source, stamp (node), samples {used, dropped_*} (node), input, complete, warnings
+//   always: units {responsivity, offset, angles_deg, local_gravity, noise_density, ...} (the unit
+//     of each key; output_unit names the device's output)
+//   from the context: device_serial, imu_topic, gimbal_driver, time_utc (ISO 8601),
+//     local_gravity_source, stamp (node), samples {used, dropped_*} (node), input, complete, warnings
 //     (offline_fit)
 //
 // Non-finite numbers are null. Keys come out sorted. Files are written atomically (atomic_file.h).
@@ -95,6 +98,14 @@ struct ResultContext {
   // "rejected_spans"), and, when found in a stream, the detector's levels ("rest_detection").
   std::optional<core::RestDetection> rest_detection;
   double rest_min_s = 0.0;
+  // Where the run came from (docs/design.md section 15, "One result document"): the device's
+  // serial ("device_serial"), the IMU topic as resolved ("imu_topic"), the gimbal driver
+  // ("gimbal_driver") and the UTC time the result was written, ISO 8601 ("time_utc"); empty:
+  // omitted.
+  std::string device_serial;
+  std::string imu_topic;
+  std::string gimbal_driver;
+  std::string time_utc;
 };
 
 std::string result_json_text(const core::CalibrationReport& report, const ResultContext& context);

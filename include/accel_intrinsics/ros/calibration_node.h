@@ -34,6 +34,8 @@
 #include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/run/calibration_run.h"
 #include "accel_intrinsics/io/checkpoint.h"
+#include "accel_intrinsics/io/result_document.h"
+#include "accel_intrinsics/io/run_directory.h"
 #include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/ros/immediate_callback_queue.h"
 #include "accel_intrinsics/ros/message_batcher.h"
@@ -49,7 +51,13 @@ struct CalibrationOptions {
   core::CalibrateOptions calibrate;
   double flush_period_s = 0.05;   // how often the run is ticked (buffered messages released), s
   double status_period_s = 1.0;   // calibration/status rate, s
-  std::string output_dir;         // checkpoint, result YAML, analysis JSON; empty = no files
+  // Base of the run directories: each run writes into output_dir/<device>/<UTC time>/ (its
+  // checkpoint, result.json, intrinsics.yaml, analysis JSON; io/run_directory.h); empty = no files
+  std::string output_dir;
+  // The device's serial (~device_serial, default "unnamed"): the run directory's <device> and
+  // the result's device_serial. Read again from the parameter server when a new run starts
+  // (supervise --device sets it before the run).
+  std::string device_serial = "unnamed";
   std::string file_prefix;        // prefix of the file names in output_dir
   std::vector<io::ExportFormat> exports;  // written into output_dir with each result
   // Lab archive URL (scripts/archive add after each result file; docs/design.md section 13); empty:
@@ -150,7 +158,14 @@ class CalibrationNode {
   // The IMU messages on their way to the IMU thread (immediate_imu false, imu_batch_s > 0).
   std::unique_ptr<MessageBatcher<sensor_msgs::Imu>> imu_batcher_;
   core::CalibrationRun run_;
-  io::CheckpointFiles files_;
+  io::CheckpointFiles files_;  // in the current run's directory
+  io::RunDirectories runs_;    // output_dir/<device>/<UTC time>/
+  // A new run (start, reset) writes into a new directory, made at its first write.
+  bool new_run_pending_ = false;
+  std::string device_serial_;  // of the current run's directory
+  // Makes the new run's directory when one is pending (files_ then writes there).
+  void ensure_run_directory();
+  io::ResultContext result_context(const ros::Time& stamp) const;
   ros::Subscriber command_sub_, imu_sub_, progress_sub_;
   std::vector<ros::Subscriber> channel_subs_;  // one per core::kChannels row
   ros::Publisher result_pub_, status_pub_, analysis_pub_;

@@ -99,6 +99,7 @@ struct OfflineFitArguments {
   std::string report_pdf;  // certificate PDF; empty: none
   // Residual CSV for scripts/plot_residuals (offline_fit_residuals.h); empty: none.
   std::string residuals_csv;
+  bool report_draft = false;  // --draft: the PDF even when refused, DRAFT on every page
   // Lab archive URL (scripts/archive, docs/design.md section 13); empty: none. device and rig name
   // the record when the budget file's certificate block has no serial or rig.
   std::string archive;

@@ -1,5 +1,6 @@
 // The result files a calibration node writes into its output_dir, one implementation for the
-// gimbal node and the tumble node: intrinsics.yaml (io::write_result_yaml) and the exports of
+// gimbal node and the tumble node: result.json and intrinsics.yaml (one document, io::
+// write_result_json/yaml) and the exports of
 // ~exports (none for a result that fails the quality gate). Errors are logged, not thrown: a
 // file that cannot be written must not stop a running stand.
 #pragma once
@@ -30,7 +31,7 @@ void log_run_action(const core::RunAction& action);
 void write_exports(const io::CheckpointFiles& files, const std::vector<io::ExportFormat>& formats,
                    const core::CalibrationReport& report);
 
-// intrinsics.yaml, then the exports; nothing when the files are disabled (no output_dir).
+// result.json and intrinsics.yaml, then the exports; nothing when the files are disabled (no output_dir).
 // Returns whether intrinsics.yaml was written.
 bool write_result_files(const io::CheckpointFiles& files,
                         const std::vector<io::ExportFormat>& formats,

@@ -18,6 +18,7 @@
 #include "accel_intrinsics/IntrinsicResult.h"
 #include "accel_intrinsics/core/run/tumble_session.h"
 #include "accel_intrinsics/io/checkpoint.h"
+#include "accel_intrinsics/io/run_directory.h"
 #include "accel_intrinsics/ros/calibration_node.h"
 
 namespace accel_intrinsics {
@@ -48,7 +49,9 @@ class TumbleCalibrationNode {
 
   ros::NodeHandle nh_, pnh_;
   TumbleNodeOptions options_;
-  io::CheckpointFiles files_;
+  io::CheckpointFiles files_;  // in the session's run directory (made at its first result)
+  io::RunDirectories runs_;    // output_dir/<device>/<UTC time>/
+  bool new_run_pending_ = true;
   std::mutex mutex_;
   core::TumbleSession session_;
   bool have_result_ = false;

@@ -150,9 +150,14 @@ std::string slow_part_note(const std::string& fitted_to, const NoiseModel& model
           "random walk and the rest's own, its amplitude's posterior mean, the scale's relative "
           "standard deviation in brackets; in the outputs' unit):";
   for (int s = 0; s < 3; ++s) {
+    // Only the parts there are: no "Gauss-Markov 0 over 0 s".
     const AxisNoiseModel& axis = model.axes[s];
-    note << (s > 0 ? ";" : "") << " " << "uvw"[s] << " gm " << axis.gm_sigma << " over " << axis.gm_tau_s << " s, rw "
-         << axis.rw_density << " per sqrt(s) [" << std::sqrt(axis.slow_scale_rel_var) << "]";
+    note << (s > 0 ? ";" : "") << " " << "uvw"[s] << ":";
+    if (!axis.slow()) note << " no slow part";
+    if (axis.gm_sigma > 0.0) note << " Gauss-Markov " << axis.gm_sigma << " over " << axis.gm_tau_s << " s";
+    if (axis.gm_sigma > 0.0 && axis.rw_density > 0.0) note << ",";
+    if (axis.rw_density > 0.0) note << " random walk " << axis.rw_density << " per sqrt(s)";
+    if (axis.slow()) note << " [" << std::sqrt(axis.slow_scale_rel_var) << "]";
   }
   return note.str();
 }

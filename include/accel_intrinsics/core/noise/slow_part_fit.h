@@ -82,8 +82,8 @@ struct RunSpan {
 RunSpan run_span(const PositionTable& table);
 
 // What a fit of the slow part chose, for NoiseModel::source: "; slow part fitted to <what>
-// (restricted likelihood, ...): u gm .. over .. s, rw .. per sqrt(s) [relative std of the
-// scale]; v ...".
+// (restricted likelihood, ...): u: Gauss-Markov .. over .. s, random walk .. per sqrt(s)
+// [relative std of the scale]; v ..." (a part that is zero left out; "no slow part" when both are).
 std::string slow_part_note(const std::string& fitted_to, const NoiseModel& model);
 
 // A shape scaled by a fitted amplitude (variance factor): the axis model it stands for, white_std
