@@ -38,17 +38,17 @@ class Dir {
   std::string path_;
 };
 
-struct Run {
+struct ToolOutput {
   int status = -1;
   std::string out;
   std::string err;
 };
 
-Run offline_fit(const std::vector<std::string>& args) {
+ToolOutput offline_fit(const std::vector<std::string>& args) {
   ai::OfflineFitArguments a;
   int status = 0;
   std::ostringstream out, err;
-  Run r;
+  ToolOutput r;
   if (!ai::parse_offline_fit_arguments(args, &a, &status, out, err)) {
     ADD_FAILURE() << "the command line did not parse: " << err.str();
     return r;
@@ -81,7 +81,7 @@ TEST(OfflineFitSetupMistake, GateNamesAxisSignAndOffersUnknownOrientations) {
   Dir dir;
   const core::SimulationOptions sim = wrong_sign_run();
   core::write_position_table_file(dir.file("table.csv"), core::simulate_position_table(sim));
-  const Run r = offline_fit({"--csv", dir.file("table.csv"), "--json", dir.file("r.json")});
+  const ToolOutput r = offline_fit({"--csv", dir.file("table.csv"), "--json", dir.file("r.json")});
   ASSERT_EQ(r.status, 3) << r.err;  // the quality gate
   EXPECT_NE(r.err.find("axis_sign[y]"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("--unknown-orientations"), std::string::npos) << r.err;
@@ -94,7 +94,7 @@ TEST(OfflineFitSetupMistake, GateNamesAxisSignAndOffersUnknownOrientations) {
 
   // The analysis names the mistake first and no physical effect (today: cubic_nonlinearity[u],
   // angle_offset[y]).
-  const Run a =
+  const ToolOutput a =
       offline_fit({"--csv", dir.file("table.csv"), "--analyze", "--json", dir.file("a.json")});
   EXPECT_EQ(a.status, 3) << a.err;
   const json ja = load(dir.file("a.json"));
@@ -105,7 +105,7 @@ TEST(OfflineFitSetupMistake, GateNamesAxisSignAndOffersUnknownOrientations) {
   EXPECT_TRUE(ja["effects"].empty()) << ja["effects"].dump();
 
   // The second opinion: the same rests without gimbal angles give the simulated intrinsics.
-  const Run t = offline_fit({"--csv", dir.file("table.csv"), "--unknown-orientations", "--json",
+  const ToolOutput t = offline_fit({"--csv", dir.file("table.csv"), "--unknown-orientations", "--json",
                              dir.file("t.json")});
   ASSERT_EQ(t.status, 0) << t.err;
   const json jt = load(dir.file("t.json"));
@@ -123,7 +123,7 @@ TEST(OfflineFitSetupMistake, CleanRunNamesNone) {
   core::SimulationOptions sim = wrong_sign_run();
   sim.truth.effects.clear();
   core::write_position_table_file(dir.file("table.csv"), core::simulate_position_table(sim));
-  const Run a =
+  const ToolOutput a =
       offline_fit({"--csv", dir.file("table.csv"), "--analyze", "--json", dir.file("a.json")});
   ASSERT_EQ(a.status, 0) << a.err;
   const json ja = load(dir.file("a.json"));
