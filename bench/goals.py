@@ -96,6 +96,7 @@ def main(argv):
         ("detection threshold / theory, quadratic non-linearity (family-wise)", lambda: f("detection_quadratic_nonlinearity_u_ratio_to_theory_familywise"), "within", (0.8, 1.25), ratio, SET_HERE),
         ("hand tumble: rest detection + fit, simulated 100 Hz session", lambda: f("BM_TumbleSimulated_samples_per_s") / 1e6, ">=", 10.0, lambda v: "%.1f M samples/s" % v, ISSUE22),
         ("hand tumble: rest detection + fit, imu_tk's Xsens session (imu_tk: 0.50 s)", lambda: f("BM_TumbleImuTkXsens_samples_per_s") / 1e6, ">=", 10.0, lambda v: "%.1f M samples/s" % v, ISSUE22),
+        ("mount check (supervise --check-mount) on the simulated stand, real time", lambda: f("mount_check_wall_s"), "<", 60.0, sec, ISSUE33),
         ("detection threshold / theory, angle offset (family-wise)", lambda: f("detection_angle_offset_x_ratio_to_theory_familywise"), "within", (0.8, 1.25), ratio, SET_HERE),
     ]
 

@@ -113,6 +113,12 @@ nlohmann::json noise_model_json(const core::NoiseModel& m) {
 
 nlohmann::json analysis_json(const AnalysisResult& r) {
   nlohmann::json j;
+  // Setup mistakes, tested before any physical effect (core/analysis/setup_mistakes.h).
+  nlohmann::json mistakes = nlohmann::json::array();
+  for (const core::SetupMistake& m : r.setup_mistakes)
+    mistakes.push_back({{"name", m.name}, {"target", m.target}, {"finding", m.finding},
+                        {"fix", m.fix}});
+  j["setup_mistakes"] = mistakes;
   nlohmann::json effects = nlohmann::json::array();
   for (const core::NamedEffect& e : r.effects) {
     effects.push_back({{"name", e.effect.name()},
@@ -237,6 +243,7 @@ void write_analysis_report(std::ostream& out, const AnalysisResult& r) {
         << g.rms * 1e3 << " mm/s^2"
         << (g.consistent_with_noise ? "" : "  <- not consistent with noise") << "\n";
   };
+  for (const core::SetupMistake& m : r.setup_mistakes) out << "  setup mistake " << m.text() << "\n";
   out << "discrepancy analysis (g = " << std::setprecision(8) << r.local_gravity
       << std::setprecision(4) << " m/s^2)\n";
   gap_line("gap before", r.before_fit.model_label(), r.before.summary);

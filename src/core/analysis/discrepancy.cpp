@@ -112,6 +112,7 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
   validate(options);
   AnalysisResult result;
   result.local_gravity = options.local_gravity;
+  if (stop_analysis_on_setup_mistakes(table, options, &result)) return result;
   const std::vector<DwellGeometry> geoms = dwell_geometries(table);
   const RunConditions run = run_conditions(table, geoms, options.min_temperature_span_k);
 

@@ -53,6 +53,7 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
 
   AnalysisOptions analysis_options = options.analysis;
   analysis_options.local_gravity = options.fit.local_gravity;
+  analysis_options.output_unit = options.output_unit.empty() ? "m/s^2" : options.output_unit;
   try {
     report.analysis = analyze(table, analysis_options);
     // Timing lag shows only in the raw streams around the moves.
@@ -129,6 +130,15 @@ CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
   QualityOptions quality = options.quality;
   quality.outputs_in_si = quality.outputs_in_si && report.output_unit == "m/s^2";
   report.quality = assess_quality(report.certificate, table, quality);
+  // A failure caused by a setup mistake names the mistake, not its symptoms (section 15).
+  if (report.method == "gimbal") {
+    SetupOptions setup;
+    setup.local_gravity = options.fit.local_gravity;
+    setup.output_unit = report.output_unit;
+    setup.min_gravity_ratio = quality.min_responsivity_si;
+    setup.max_gravity_ratio = quality.max_responsivity_si;
+    name_setup_mistakes(table, setup, &report.quality);
+  }
   if (options.budget)
     report.budget = uncertainty_budget(table, report.certificate, *options.budget);
   return report;

@@ -39,6 +39,7 @@
 #include <string>
 #include <vector>
 
+#include "accel_intrinsics/core/analysis/setup_mistakes.h"
 #include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/model/effects.h"
@@ -91,6 +92,9 @@ struct AnalysisOptions {
   // (cross_validated_gap); an effect is named only when adding it also lowers that (the in-sample
   // test and the out-of-sample gap agree). 0 folds: no cross-validation (and no such check).
   int cv_folds = 5;
+  // Unit of the outputs (docs/design.md section 6), for the setup mistakes tested first
+  // (setup_mistakes.h: only m/s^2 is checked against |g|).
+  std::string output_unit = "m/s^2";
 };
 
 // Throws std::invalid_argument naming the field.
@@ -257,6 +261,9 @@ struct NoiseEntry {
 };
 
 struct AnalysisResult {
+  // Tested before any physical effect (setup_mistakes.h): when one is found the analysis stops
+  // after the base fit and names no effect.
+  std::vector<SetupMistake> setup_mistakes;
   FitResult before_fit;  // base model
   FitResult after_fit;   // base model + named effects
   Gap before;
