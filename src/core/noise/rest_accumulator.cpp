@@ -244,6 +244,14 @@ std::vector<DwellRecord> RestAccumulator::rest_blocks() const {
   return out;
 }
 
+std::optional<NoiseModel> RestAccumulator::noise_model() const {
+  if (samples() < 64 || !(last_s_ > first_s_)) return std::nullopt;
+  const double rate = rate_hz();
+  NoiseModel m = estimate_noise_model(allan_.curve(rate));
+  m.rest_blocks = rest_blocks();
+  return m;
+}
+
 void RestAccumulator::clear() {
   allan_.clear();
   first_s_ = last_s_ = 0.0;
@@ -254,6 +262,53 @@ void RestAccumulator::clear() {
 std::size_t RestAccumulator::memory_bytes() const {
   return sizeof(*this) - sizeof(allan_) + allan_.memory_bytes() +
          sub_.capacity() * sizeof(SubBlock);
+}
+
+// ---- LongRestRecorder ----------------------------------------------------------------------------
+
+void LongRestRecorder::add_command(const GimbalEvent& event) {
+  if (stage_ == Stage::BeforeRest && event.state == GimbalState::Settled) {
+    stage_ = Stage::InRest;
+    start_s_ = event.stamp_s + settle_discard_s_;  // the expression of the dwell's t_start_s
+  } else if (stage_ == Stage::InRest) {
+    // Any command ends the first dwell, as it ends it in the assembler (a MOVING, a DONE, or a
+    // SETTLED out of order).
+    stage_ = Stage::After;
+    end_s_ = event.stamp_s;
+  }
+}
+
+void LongRestRecorder::add_sample(const ImuSample& sample) {
+  if (stage_ == Stage::BeforeRest || sample.stamp_s < start_s_) return;
+  // A sample stamped with the command that ends the rest arrives after it and still belongs to it.
+  if (stage_ == Stage::After && sample.stamp_s > end_s_) return;
+  // Released in stamp order; a stamp that goes back (the run rewound and fed again) is a sample
+  // already counted.
+  if (rest_.samples() > 0 && sample.stamp_s < rest_.last_stamp_s()) return;
+  rest_.add(sample.stamp_s, sample.outputs);
+}
+
+void LongRestRecorder::clear() {
+  stage_ = Stage::BeforeRest;
+  start_s_ = end_s_ = 0.0;
+  rest_.clear();
+}
+
+std::optional<NoiseModel> LongRestRecorder::noise_model(const PositionTable& table,
+                                                        double initial_rest_s) const {
+  const std::optional<LongRest> span = find_long_rest(table, initial_rest_s);
+  if (!span || stage_ != Stage::After || span->t_start_s != start_s_ || span->t_end_s != end_s_)
+    return std::nullopt;
+  return noise_model_of_rest(rest_, *span);
+}
+
+std::optional<NoiseModel> noise_model_of_rest(const RestAccumulator& rest, const LongRest& span) {
+  std::optional<NoiseModel> m = rest.noise_model();
+  if (!m) return m;
+  m->source = span.reason;
+  m->rest_t_start_s = span.t_start_s;
+  m->rest_t_end_s = span.t_end_s;
+  return m;
 }
 
 }  // namespace core

@@ -8,6 +8,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <optional>
 #include <cmath>
 #include <random>
 #include <string>
@@ -138,6 +139,18 @@ void expect_blocks(const RestAccumulator& acc, const Stream& s) {
   EXPECT_LE(w, 2.0 * (s.stamps.back() - s.stamps.front()) / RestAccumulator::kSubBlocks);
 }
 
+void expect_same_model(const NoiseModel& streamed, const NoiseModel& batch) {
+  EXPECT_EQ(streamed.rest_samples, batch.rest_samples);
+  EXPECT_EQ(streamed.rate_hz, batch.rate_hz);
+  for (int a = 0; a < 3; ++a) {
+    const AxisNoiseModel &x = streamed.axes[a], &y = batch.axes[a];
+    EXPECT_NEAR(x.white_std, y.white_std, 1e-9 * y.white_std) << a;
+    EXPECT_NEAR(x.gm_sigma, y.gm_sigma, 1e-7 * y.gm_sigma) << a;
+    EXPECT_EQ(x.gm_tau_s, y.gm_tau_s) << a;
+    EXPECT_NEAR(x.rw_density, y.rw_density, 1e-7 * y.rw_density) << a;
+  }
+}
+
 class RestAccumulatorAtRate : public ::testing::TestWithParam<double> {};
 
 TEST_P(RestAccumulatorAtRate, StreamedCurveAndBlocksAreTheBatchOnes) {
@@ -149,9 +162,91 @@ TEST_P(RestAccumulatorAtRate, StreamedCurveAndBlocksAreTheBatchOnes) {
   expect_same_curve(acc.allan_curve(), overlapping_allan_deviation(s.outputs, rate_of(s)),
                     1e-10);
   expect_blocks(acc, s);
+  // The noise model: the batch fit on the stored samples (today's path), to rounding.
+  const std::optional<NoiseModel> streamed = acc.noise_model();
+  ASSERT_TRUE(streamed.has_value());
+  expect_same_model(*streamed, estimate_noise_model(s.outputs, rate_of(s)));
+  EXPECT_EQ(streamed->rest_blocks.size(), static_cast<std::size_t>(kRestBlocks));
 }
 
 INSTANTIATE_TEST_SUITE_P(Rates, RestAccumulatorAtRate, ::testing::Values(100.0, 1000.0, 10000.0));
+
+// A 120 s rest at 50 kHz (6 M samples, six times what the recorder kept until issue 38): its
+// second half is three times as noisy and drifts. The model sees all of it: the white std is the
+// pooled one of both halves (sqrt(5) x the first half's; the first 20 s alone would give 1 x),
+// the blocks reach the last stamp, and the memory is what it was after 20 s.
+TEST(RestAccumulator, A120sRestAt50kHzIsUsedWhole) {
+  const double rate = 50000.0, sigma = 0.01;
+  std::mt19937_64 rng(50);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  RestAccumulator acc;
+  std::size_t memory_at_20s = 0;
+  const std::size_t n = static_cast<std::size_t>(120.0 * rate);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double t = static_cast<double>(i) / rate;
+    const bool second_half = t >= 60.0;
+    const double s = second_half ? 3.0 * sigma : sigma;
+    const double drift = second_half ? 1e-3 * (t - 60.0) : 0.0;
+    acc.add(t, Eigen::Vector3d(s * normal(rng) + drift, s * normal(rng), 9.81 + s * normal(rng)));
+    if (i + 1 == static_cast<std::size_t>(20.0 * rate)) memory_at_20s = acc.memory_bytes();
+  }
+  EXPECT_EQ(acc.samples(), n);
+  const std::optional<NoiseModel> m = acc.noise_model();
+  ASSERT_TRUE(m.has_value());
+  EXPECT_EQ(m->rest_samples, n);
+  // Pooled white std of the two halves: sigma sqrt((1 + 9) / 2).
+  for (int a = 1; a < 3; ++a)
+    EXPECT_NEAR(m->axes[a].white_std, sigma * std::sqrt(5.0), 0.05 * sigma * std::sqrt(5.0)) << a;
+  ASSERT_EQ(m->rest_blocks.size(), static_cast<std::size_t>(kRestBlocks));
+  EXPECT_NEAR(m->rest_blocks.back().t_end_s, (n - 1) / rate, 1e-9);
+  // The last block: the drift's level at 116..120 s and the second half's scatter.
+  EXPECT_NEAR(m->rest_blocks.back().mean(0), 1e-3 * 58.0, 1e-3);
+  EXPECT_NEAR(m->rest_blocks.back().std(1), 3.0 * sigma, 0.1 * sigma);
+  EXPECT_NEAR(m->rest_blocks.front().std(1), sigma, 0.05 * sigma);
+  // Memory: under 1 MB, and no more after 120 s than after 20 s but for the Allan cluster sizes
+  // opened in between (a few kB).
+  EXPECT_LT(acc.memory_bytes(), std::size_t{1} << 20);
+  EXPECT_LT(acc.memory_bytes(), memory_at_20s + 16384);
+}
+
+// imu_tk's real Xsens session (raw counts near 33000, 100 Hz, a 51 s first rest), its rests found
+// as offline_fit finds them: the streamed model is the batch one on the stored samples.
+TEST(RestAccumulator, XsensSessionModelIsTheBatchOne) {
+  const std::vector<ImuSample> samples = read_samples_file(
+      test_support::source_dir() + "/test/data/imu_tk_xsens/xsens_acc.mat");
+  RestDetectionOptions options;
+  options.min_rest_s = 2.0;  // offline_fit's --rest-min-s default
+  PositionTable table;
+  table.rows = detect_rests(samples, options).rests;
+  const std::optional<LongRest> rest = find_long_rest(table);
+  ASSERT_TRUE(rest.has_value());
+  Stream s;
+  for (const ImuSample& x : samples) {
+    if (x.stamp_s < rest->t_start_s || x.stamp_s > rest->t_end_s) continue;
+    s.stamps.push_back(x.stamp_s);
+    s.outputs.push_back(x.outputs);
+  }
+  ASSERT_GT(s.stamps.size(), 3000u);
+  const RestAccumulator acc = accumulate(s);
+  expect_same_curve(acc.allan_curve(), overlapping_allan_deviation(s.outputs, rate_of(s)), 1e-10);
+  const std::optional<NoiseModel> streamed = acc.noise_model();
+  ASSERT_TRUE(streamed.has_value());
+  expect_same_model(*streamed, estimate_noise_model(s.outputs, rate_of(s)));
+  expect_blocks(acc, s);
+  // noise_model_of_run (offline_fit's call) is the accumulator's model with the rest's source.
+  std::vector<double> stamps;
+  std::vector<Eigen::Vector3d> outputs;
+  for (const ImuSample& x : samples) {
+    stamps.push_back(x.stamp_s);
+    outputs.push_back(x.outputs);
+  }
+  const std::optional<NoiseModel> run = noise_model_of_run(table, stamps, outputs);
+  ASSERT_TRUE(run.has_value());
+  EXPECT_EQ(run->source, rest->reason);
+  EXPECT_EQ(run->rest_samples, streamed->rest_samples);
+  for (int a = 0; a < 3; ++a) EXPECT_EQ(run->axes[a].white_std, streamed->axes[a].white_std);
+  ASSERT_EQ(run->rest_blocks.size(), streamed->rest_blocks.size());
+}
 
 }  // namespace
 }  // namespace core

@@ -12,7 +12,9 @@
 #include <optional>
 #include <vector>
 
+#include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/dwells/dwell_record.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/noise/noise.h"
 
 namespace accel_intrinsics {
@@ -115,6 +117,40 @@ class RestAccumulator {
   double width_s_ = 0.0;
   std::vector<SubBlock> sub_;
 };
+
+// The long rest of a live run (docs/design.md section 12), accumulated as it comes: fed every
+// gimbal event and sample in stamp order (from DwellAssembler::set_release_observers, as
+// MoveSampleRecorder), it feeds a RestAccumulator with the samples of the run's first dwell: from
+// the first SETTLED plus settle_discard_s (the dwell's t_start_s, as the assembler sets it) to
+// the next command (its t_end_s; a sample stamped with that command still belongs to it). Every
+// sample of the rest is used, at any rate and length, in constant memory. clear() when the run
+// starts over.
+class LongRestRecorder {
+ public:
+  explicit LongRestRecorder(double settle_discard_s = 0.0) : settle_discard_s_(settle_discard_s) {}
+  void set_settle_discard_s(double s) { settle_discard_s_ = s; }
+  void add_command(const GimbalEvent& event);
+  void add_sample(const ImuSample& sample);
+  void clear();
+  std::size_t samples() const { return rest_.samples(); }
+  const RestAccumulator& rest() const { return rest_; }
+  // The noise model of the run's long rest (find_long_rest(table, initial_rest_s)) when it is
+  // the first dwell this recorder saw whole; nothing otherwise. Throws as
+  // RestAccumulator::noise_model.
+  std::optional<NoiseModel> noise_model(const PositionTable& table, double initial_rest_s) const;
+
+ private:
+  enum class Stage { BeforeRest, InRest, After };
+  double settle_discard_s_;
+  Stage stage_ = Stage::BeforeRest;
+  double start_s_ = 0.0;  // SETTLED + settle_discard_s
+  double end_s_ = 0.0;    // the command that ended the rest
+  RestAccumulator rest_;
+};
+
+// The model of a long rest from its accumulated samples: RestAccumulator::noise_model with the
+// rest's source and span.
+std::optional<NoiseModel> noise_model_of_rest(const RestAccumulator& rest, const LongRest& span);
 
 }  // namespace core
 }  // namespace accel_intrinsics
