@@ -1,5 +1,6 @@
 // Live load test of a running calibration node: publishes IMU messages at --rate (default
 // 10 kHz) and gimbal commands (0.5 s MOVING, then a dwell of --dwell s, default 1.5) on real time,
+// (--first-dwell S: the first dwell lasts S instead, a long rest as the noise model takes it),
 // then reports the node's CPU share (from /proc/PID/stat) and its resident memory before and after,
 // and the node's own counters (calibration/status) to show that it kept up.
 //   rosrun accel_intrinsics calibration __name:=calibration &        (real time, no use_sim_time)
@@ -42,7 +43,7 @@ void on_status(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg) {
 int main(int argc, char** argv) {
   ros::init(argc, argv, "calibration_node_load", ros::init_options::AnonymousName);
   int pid = 0, nodelet = 0;
-  double rate_hz = 10000.0, seconds = 20.0, dwell_s = 1.5;
+  double rate_hz = 10000.0, seconds = 20.0, dwell_s = 1.5, first_dwell_s = 0.0;
   double pace_s = 0.0005;  // the publisher's sleep between rounds: messages come in small bursts
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
@@ -54,15 +55,18 @@ int main(int argc, char** argv) {
       seconds = std::atof(argv[i + 1]);
     else if (key == "--dwell")
       dwell_s = std::atof(argv[i + 1]);
+    else if (key == "--first-dwell")
+      first_dwell_s = std::atof(argv[i + 1]);
     else if (key == "--pace")
       pace_s = std::atof(argv[i + 1]);
     else if (key == "--nodelet")
       nodelet = std::atoi(argv[i + 1]);
   }
-  if ((pid <= 0) == (nodelet == 0) || rate_hz <= 0 || seconds <= 0 || dwell_s <= 0 || pace_s < 0) {
+  if ((pid <= 0) == (nodelet == 0) || rate_hz <= 0 || seconds <= 0 || dwell_s <= 0 || pace_s < 0 ||
+      first_dwell_s < 0) {
     std::fprintf(stderr,
                  "usage: calibration_node_load (--pid PID | --nodelet 1) [--rate HZ] [--seconds S] "
-                 "[--dwell S] [--pace S]\n");
+                 "[--dwell S] [--first-dwell S] [--pace S]\n");
     return 2;
   }
   ros::NodeHandle nh;
@@ -123,7 +127,7 @@ int main(int argc, char** argv) {
                        : accel_intrinsics::GimbalCommand::SETTLED;
       cmd.publish(c);
       if (!moving) ++step;
-      next_command += moving ? 0.5 : dwell_s;
+      next_command += moving ? 0.5 : (step == 1 && first_dwell_s > 0.0 ? first_dwell_s : dwell_s);
       moving = !moving;
     }
     const std::uint64_t due = static_cast<std::uint64_t>(elapsed * rate_hz);

@@ -68,6 +68,8 @@ def main(argv):
         ("calibration node at 10 kHz, dwells of 10 s / 60 s (worst)", lambda: fmax("node_load_dwell_10s_cpu", "node_load_dwell_60s_cpu"), "<", 10.0, pct, SET_HERE),
         ("calibration node, late drops at 10 kHz (all runs)", lambda: sum(v for k, (v, _) in figures.items() if k.startswith("node_load_") and k.endswith("_dropped_late")) if any(k.endswith("_dropped_late") for k in figures) else f("node_load_dwell_1.5s_dropped_late"), "<=", 0, lambda v: "%.0f" % v, SET_HERE),
         ("calibration node memory growth, dwells of 1.5 / 10 / 60 s (flat)", lambda: fmax("node_load_dwell_1.5s_rss_growth", "node_load_dwell_10s_rss_growth", "node_load_dwell_60s_rss_growth"), "<=", 1024, kb, ISSUE15 + " (flat; 1 MB set here)"),
+        ("calibration node memory growth, a 120 s first rest at 10 kHz / 50 kHz (flat)", lambda: fmax("node_load_dwell_1.5s_first_rest_120s_10khz_rss_growth", "node_load_dwell_1.5s_first_rest_120s_50khz_rss_growth"), "<=", 1024, kb, "issue 38"),
+        ("calibration node at 10 kHz with a 120 s first rest", lambda: f("node_load_dwell_1.5s_first_rest_120s_10khz_cpu"), "<", 10.0, pct, SET_HERE),
         ("calibration nodelet at 50 kHz (in process, pointers), 5 messages per 100 µs", lambda: f("calibration_nodelet_50khz_paced_cpu"), "<", 5.0, pct, ISSUE26),
         ("calibration nodelet at 50 kHz (in process, pointers), bursts of 25", lambda: f("calibration_nodelet_50khz_bursty_cpu"), "<", 5.0, pct, ISSUE26),
         ("calibration nodelet at 50 kHz: the whole process with the publisher (driver) thread, paced / bursty", lambda: "%.1f / %.1f %%" % (f("calibration_nodelet_50khz_paced_process_cpu"), f("calibration_nodelet_50khz_bursty_process_cpu")), None, None, str, ""),

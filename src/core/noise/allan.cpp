@@ -1,6 +1,7 @@
 // White and Allan-deviation noise: per-dwell noise, overlapping Allan deviation, a static
 // record's noise parameters (noise.h).
 #include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/noise/rest_accumulator.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -13,18 +14,6 @@
 namespace accel_intrinsics {
 namespace core {
 namespace {
-
-// Cluster sizes about points_per_decade per decade, 1 .. max_m, each once.
-std::vector<std::size_t> cluster_sizes(std::size_t max_m, int points_per_decade) {
-  std::vector<std::size_t> out;
-  for (int i = 0;; ++i) {
-    const double m = std::round(std::pow(10.0, static_cast<double>(i) / points_per_decade));
-    if (m > static_cast<double>(max_m)) break;
-    const std::size_t mi = static_cast<std::size_t>(m);
-    if (out.empty() || mi != out.back()) out.push_back(mi);
-  }
-  return out;
-}
 
 // Weighted least squares of y on the columns of A that `use` selects; returns the coefficients
 // (zero where not used), their covariance and chi2.
@@ -184,7 +173,7 @@ AllanCurve overlapping_allan_deviation(const std::vector<Eigen::Vector3d>& sampl
   AllanCurve curve;
   curve.samples = n;
   curve.rate_hz = rate_hz;
-  const std::vector<std::size_t> sizes = cluster_sizes(n / 4, points_per_decade);
+  const std::vector<std::size_t> sizes = allan_cluster_sizes(n / 4, points_per_decade);
   curve.adev.assign(sizes.size(), Eigen::Vector3d::Zero());
   std::vector<double> axis(n);
   for (int a = 0; a < 3; ++a) {

@@ -1,6 +1,7 @@
-// The long rest: found in a run's table, recorded live, cut into blocks and turned into a noise
-// model (noise.h).
+// The long rest: found in a run's table and turned into a noise model (noise.h); accumulated by
+// rest_accumulator.cpp, live and offline alike.
 #include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/noise/rest_accumulator.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -55,96 +56,21 @@ std::optional<LongRest> find_long_rest(const PositionTable& table, double initia
   return std::nullopt;
 }
 
-namespace {
-
-// The samples stamped in [first, last] cut into blocks of equal duration (kRestBlocks, fewer
-// when that would make them shorter than 1 s): each block's mean, std, n and its first and last
-// stamps.
-std::vector<DwellRecord> rest_blocks(const std::vector<double>& stamps_s,
-                                     const std::vector<Eigen::Vector3d>& outputs, double first,
-                                     double last) {
-  const double span = last - first;
-  const int count = std::max(1, std::min(kRestBlocks, static_cast<int>(std::floor(span))));
-  const double length = span / count;
-  std::vector<DwellRecord> blocks(static_cast<std::size_t>(count));
-  std::vector<DwellAccumulator> stats(blocks.size());
-  for (std::size_t i = 0; i < stamps_s.size(); ++i) {
-    if (stamps_s[i] < first || stamps_s[i] > last) continue;
-    const std::size_t b = std::min(blocks.size() - 1,
-                                   static_cast<std::size_t>((stamps_s[i] - first) / length));
-    if (stats[b].count() == 0) blocks[b].t_start_s = stamps_s[i];
-    blocks[b].t_end_s = stamps_s[i];
-    stats[b].add(outputs[i]);
-  }
-  std::vector<DwellRecord> out;
-  for (std::size_t b = 0; b < blocks.size(); ++b) {
-    if (stats[b].count() < 2) continue;
-    blocks[b].n = stats[b].count();
-    blocks[b].mean = stats[b].mean();
-    blocks[b].std = stats[b].sample_std();
-    blocks[b].orientation_unknown = true;
-    out.push_back(blocks[b]);
-  }
-  return out;
-}
-
-}  // namespace
-
 std::optional<NoiseModel> noise_model_of_run(const PositionTable& table,
                                              const std::vector<double>& stamps_s,
                                              const std::vector<Eigen::Vector3d>& outputs,
                                              double initial_rest_s) {
   const std::optional<LongRest> rest = find_long_rest(table, initial_rest_s);
   if (!rest || stamps_s.size() != outputs.size()) return std::nullopt;
-  std::vector<Eigen::Vector3d> inside;
-  double first = 0.0, last = 0.0;
-  for (std::size_t i = 0; i < stamps_s.size(); ++i) {
-    if (stamps_s[i] < rest->t_start_s || stamps_s[i] > rest->t_end_s) continue;
-    if (inside.empty()) first = stamps_s[i];
-    last = stamps_s[i];
-    inside.push_back(outputs[i]);
-  }
-  if (inside.size() < 64 || !(last > first)) return std::nullopt;
-  const double rate = static_cast<double>(inside.size() - 1) / (last - first);
-  NoiseModel m = estimate_noise_model(inside, rate);
-  m.source = rest->reason;
-  m.rest_t_start_s = rest->t_start_s;
-  m.rest_t_end_s = rest->t_end_s;
-  m.rest_blocks = rest_blocks(stamps_s, outputs, first, last);
-  return m;
-}
-
-void LongRestRecorder::add_command(const GimbalEvent& event) {
-  if (stage_ == Stage::BeforeRest && event.state == GimbalState::Settled) {
-    stage_ = Stage::InRest;
-  } else if (stage_ == Stage::InRest && event.state != GimbalState::Settled) {
-    stage_ = Stage::After;
-    end_s_ = event.stamp_s;
-  }
-}
-
-void LongRestRecorder::add_sample(const ImuSample& sample) {
-  // A sample stamped with the MOVING that ends the rest arrives after it and still belongs to it.
-  if (stage_ == Stage::BeforeRest || (stage_ == Stage::After && sample.stamp_s > end_s_)) return;
-  if (stamps_.size() >= max_samples_) {
-    ++dropped_;
-    return;
-  }
-  stamps_.push_back(sample.stamp_s);
-  outputs_.push_back(sample.outputs);
-}
-
-void LongRestRecorder::clear() {
-  stage_ = Stage::BeforeRest;
-  end_s_ = 0.0;
-  stamps_.clear();
-  outputs_.clear();
-  dropped_ = 0;
-}
-
-std::optional<NoiseModel> LongRestRecorder::noise_model(const PositionTable& table,
-                                                        double initial_rest_s) const {
-  return noise_model_of_run(table, stamps_, outputs_, initial_rest_s);
+  std::vector<std::size_t> inside;
+  for (std::size_t i = 0; i < stamps_s.size(); ++i)
+    if (stamps_s[i] >= rest->t_start_s && stamps_s[i] <= rest->t_end_s) inside.push_back(i);
+  // In stamp order, as the live run's samples come (a recorded stream may hold some out of it).
+  std::stable_sort(inside.begin(), inside.end(),
+                   [&](std::size_t a, std::size_t b) { return stamps_s[a] < stamps_s[b]; });
+  RestAccumulator accumulated;
+  for (std::size_t i : inside) accumulated.add(stamps_s[i], outputs[i]);
+  return noise_model_of_rest(accumulated, *rest);
 }
 
 }  // namespace core

@@ -150,19 +150,30 @@ NonNegativeFit non_negative_fit(const Eigen::MatrixXd& A, const Eigen::VectorXd&
 
 }  // namespace
 
-NoiseModel estimate_noise_model(const std::vector<Eigen::Vector3d>& samples, double rate_hz) {
+// The record's length checked before its curve is computed (both overloads).
+static double checked_duration(std::size_t samples, double rate_hz) {
   if (!(rate_hz > 0.0) || !std::isfinite(rate_hz))
     throw std::invalid_argument("estimate_noise_model: the rate must be positive");
-  const double duration = static_cast<double>(samples.size()) / rate_hz;
-  if (samples.size() < 64 || duration < 10.0)
+  const double duration = static_cast<double>(samples) / rate_hz;
+  if (samples < 64 || duration < 10.0)
     throw std::invalid_argument("estimate_noise_model: the rest holds " +
-                                std::to_string(samples.size()) + " samples over " +
+                                std::to_string(samples) + " samples over " +
                                 std::to_string(duration) +
                                 " s; at least 64 samples and 10 s are needed");
-  const AllanCurve curve = overlapping_allan_deviation(samples, rate_hz, 10);
+  return duration;
+}
+
+NoiseModel estimate_noise_model(const std::vector<Eigen::Vector3d>& samples, double rate_hz) {
+  checked_duration(samples.size(), rate_hz);
+  return estimate_noise_model(overlapping_allan_deviation(samples, rate_hz, 10));
+}
+
+NoiseModel estimate_noise_model(const AllanCurve& curve) {
+  const double rate_hz = curve.rate_hz;
+  const double duration = checked_duration(curve.samples, rate_hz);
   NoiseModel model;
   model.rate_hz = rate_hz;
-  model.rest_samples = samples.size();
+  model.rest_samples = curve.samples;
   const std::size_t k = curve.tau_s.size();
   // Correlation times tried: 0.5 s to 5 times the record, 8 per decade.
   std::vector<double> taus;

@@ -35,6 +35,8 @@ CalibrationRun::CalibrationRun(const RunOptions& options)
 
 void CalibrationRun::connect_assembler() {
   moves_.clear();
+  // The long rest starts where the assembler starts the dwell: after the settle discard.
+  long_rest_.set_settle_discard_s(options_.assembler.settle_discard_s);
   // Events and samples in stamp order: the moves (timing lag) when asked, the long rest always.
   const bool record_moves = options_.record_moves;
   assembler_.set_release_observers(
@@ -108,8 +110,6 @@ void CalibrationRun::emit_fit() {
     std::ostringstream m;
     m << "noise model " << a.noise_model->kind() << " from " << a.noise_model->source << " ("
       << a.noise_model->rest_samples << " samples)";
-    if (long_rest_.samples_dropped() > 0)
-      m << "; " << long_rest_.samples_dropped() << " later samples of the rest not kept";
     log(RunAction::Level::Info, m.str());
   } else if (!why_not.empty()) {
     log(RunAction::Level::Warn, "no noise model from the long rest (white weights): " + why_not);

@@ -127,7 +127,7 @@ TEST(TumbleSession, RestsOneAtATimeTheStartingPosesThenTheFit) {
   EXPECT_NEAR(p.next_up.norm(), 1.0, 1e-9);
 }
 
-// A live session whose first rest is 120 s under a slow bias: it keeps that rest's raw samples as
+// A live session whose first rest is 120 s under a slow bias: it accumulates that rest's samples as
 // they come (the detected dwell source feeds the dwell assembler, whose release observers feed a
 // LongRestRecorder) and weighs its report with their noise model: the model offline_fit's rule
 // gives for the same rests from the whole record. A session without a long rest stays white.

@@ -164,6 +164,9 @@ NoiseModel white_noise_model(const Eigen::Vector3d& white_std, double rate_hz);
 // record, the best one kept). A slow part that the fit does not resolve is set to zero.
 // Throws std::invalid_argument for a record too short or a rate that is not positive.
 NoiseModel estimate_noise_model(const std::vector<Eigen::Vector3d>& samples, double rate_hz);
+// The same fit on a record's Allan curve at 10 points per decade (curve.samples and
+// curve.rate_hz the record's): what the streamed long rest gives (rest_accumulator.h).
+NoiseModel estimate_noise_model(const AllanCurve& curve);
 
 // The long rest of a run (docs/design.md section 12), as a time span: on a gimbal run the first dwell
 // (phase x, step 0) when it lasts at least `initial_rest_s` (> 0); in any recorded run a dwell at
@@ -177,42 +180,18 @@ struct LongRest {
 std::optional<LongRest> find_long_rest(const PositionTable& table, double initial_rest_s = 0.0);
 
 // The noise model of a run: its long rest found in the table, the raw samples (stamps, outputs)
-// that fall inside it estimated with estimate_noise_model, and the rest's blocks (rest_blocks:
-// the rest cut into kRestBlocks blocks of equal duration, at least 1 s each, a block with fewer
-// than 2 samples left out); nothing when the run has no long rest or fewer than 64 samples
-// inside it.
+// that fall inside it accumulated in stamp order (RestAccumulator, rest_accumulator.h: the
+// model the live run's LongRestRecorder gives) and estimated with estimate_noise_model, and the
+// rest's blocks (rest_blocks: the rest cut into kRestBlocks blocks of about equal duration, at
+// least 1 s each, a block with fewer than 2 samples left out); nothing when the run has no long
+// rest or fewer than 64 samples inside it.
 constexpr int kRestBlocks = 30;
 std::optional<NoiseModel> noise_model_of_run(const PositionTable& table,
                                              const std::vector<double>& stamps_s,
                                              const std::vector<Eigen::Vector3d>& outputs,
                                              double initial_rest_s = 0.0);
 
-// The raw samples of a live run's long rest, for noise_model_of_run (docs/design.md section 12), in
-// bounded memory: fed every gimbal event and sample in stamp order (as MoveSampleRecorder, from
-// DwellAssembler::set_release_observers), it keeps the samples from the run's first SETTLED to
-// the MOVING after it (the first dwell, which the protocol holds for initial_rest_s), at most
-// max_samples (later ones are counted in samples_dropped). clear() when the run starts over.
-class LongRestRecorder {
- public:
-  explicit LongRestRecorder(std::size_t max_samples = 1000000) : max_samples_(max_samples) {}
-  void add_command(const GimbalEvent& event);
-  void add_sample(const ImuSample& sample);
-  void clear();
-  const std::vector<double>& stamps() const { return stamps_; }
-  const std::vector<Eigen::Vector3d>& outputs() const { return outputs_; }
-  std::size_t samples_dropped() const { return dropped_; }
-  // noise_model_of_run(table, stamps(), outputs(), initial_rest_s).
-  std::optional<NoiseModel> noise_model(const PositionTable& table, double initial_rest_s) const;
-
- private:
-  enum class Stage { BeforeRest, InRest, After };
-  std::size_t max_samples_;
-  Stage stage_ = Stage::BeforeRest;
-  double end_s_ = 0.0;  // stamp of the MOVING that ended the rest
-  std::vector<double> stamps_;
-  std::vector<Eigen::Vector3d> outputs_;
-  std::size_t dropped_ = 0;
-};
+// LongRestRecorder (the live run's long rest, accumulated as it comes): rest_accumulator.h.
 
 // The dwell means' covariance a noise model implies, per accelerometer s: C_s = D_s R_s D_s with
 // D_s = diag(se_s) (the white standard errors the fit uses) and R_s = I + D_s^-1 K_s D_s^-1 (K_s:

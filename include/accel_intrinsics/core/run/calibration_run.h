@@ -15,8 +15,8 @@
 //                                                       (only from tick())
 //
 // What it owns: the dwell assembler (samples -> dwells, docs/design.md section 2), fed through the
-// commanded dwell source, the position table of accepted rows, the raw samples of the run's first
-// dwell (its long rest, for the noise model: docs/design.md section 12), the watchdogs (no samples
+// commanded dwell source, the position table of accepted rows, the statistics of the run's first
+// dwell accumulated as it comes (its long rest, for the noise model: docs/design.md section 12), the watchdogs (no samples
 // during a dwell, too few samples, a dwell with none), retries of a faulty position (rewind the
 // controller; rows measured before its new MOVING are discarded: "blackouts"), resume after a
 // restart (from a checkpoint, or of the gimbal controller), and the decision when to fit.
@@ -38,6 +38,7 @@
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/dwells/dwell_source.h"
 #include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/noise/rest_accumulator.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/analysis/raw_stream_analysis.h"
 #include "accel_intrinsics/core/run/run_actions.h"
@@ -168,7 +169,7 @@ class CalibrationRun {
   const MoveSampleRecorder& recorded_moves() const { return moves_; }
   // The noise model of the run's long rest (docs/design.md section 12), by the rule offline_fit
   // applies to a recorded run (core::noise_model_of_run: the first dwell of at least 10 times the
-  // median dwell), from the first dwell's raw samples kept as they came. None (white) when the
+  // median dwell), from the first dwell's samples accumulated as they came (rest_accumulator.h). None (white) when the
   // run has no long rest, or its samples are not here (a run restored from a checkpoint), or they
   // are too few for a model (`why` then says so).
   std::optional<NoiseModel> noise_model(std::string* why = nullptr) const;

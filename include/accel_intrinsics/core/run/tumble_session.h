@@ -16,6 +16,7 @@
 #include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/dwells/dwell_source.h"
 #include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/noise/rest_accumulator.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/dwells/rest_detection.h"
 #include "accel_intrinsics/core/fit/tumble.h"
@@ -73,8 +74,8 @@ class TumbleSession {
   const RestDetector& detector() const { return source_->detector(); }
   std::uint64_t dropped_out_of_order() const { return dropped_; }
   // The noise model of the first rest when it is the session's long rest (at least 30 s:
-  // core::find_long_rest, as offline_fit finds it in a recorded tumble), from its raw samples
-  // kept as they came; none (white) otherwise. A person starts with the long rest.
+  // core::find_long_rest, as offline_fit finds it in a recorded tumble), from its samples
+  // accumulated as they came (rest_accumulator.h); none (white) otherwise. A person starts with the long rest.
   std::optional<NoiseModel> noise_model() const;
 
   // The whole pipeline on the rests so far (core::calibrate), weighted with noise_model();
