@@ -40,7 +40,7 @@ function makeCard(ns) {
   const canvases = {};
   for (const a of ACCEL) {
     const box = el("div", "plot");
-    const title = el("span", "", "accelerometer " + a + ": dwell means (m/s\u00b2) and residuals");
+    const title = el("span", "", a + ": dwell means and residuals (m/s\u00b2)");
     const main = document.createElement("canvas");
     main.width = 240; main.height = 150; main.className = "means";
     main.dataset.accel = a;
