@@ -1,4 +1,3 @@
-#!/usr/bin/python3
 """bench/dashboard_client.py PORT SECONDS PID: one WebSocket client of the dashboard (as a browser
 would be) reading every update for SECONDS; after each update prints a line
 `events E dwells D cpu C % over T s` (C: the CPU share of process PID, the dashboard, since the

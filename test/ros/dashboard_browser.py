@@ -20,6 +20,7 @@ import tempfile
 import threading
 import time
 import unittest
+import urllib.request
 import xmlrpc.client
 
 import rosgraph
@@ -112,7 +113,15 @@ class DashboardInBrowser(unittest.TestCase):
             time.sleep(0.05)
         self.fail("timed out after %.0f s waiting for %s" % (timeout_s, what))
 
+    def page_served(self):
+        try:
+            with urllib.request.urlopen(self.url, timeout=2.0) as r:
+                return r.status == 200
+        except OSError:
+            return False
+
     def test_two_stands_live_in_the_browser(self):
+        self.wait_for("the dashboard at " + self.url, self.page_served, 30.0)
         self.browser.get(self.url)
         self.wait_for("both cards", lambda: self.card_info(self.done_ns) and
                       self.card_info(self.kill_ns), 30.0)

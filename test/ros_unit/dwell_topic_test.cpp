@@ -95,7 +95,7 @@ void write_run(const std::string& path, bool with_dwells) {
       t += 1.0;
     }
   }
-  bag.command(t, 2, 5, 2.0 * kPi * 5 / 6.0, ai::GimbalCommand::DONE);
+  bag.command(t, 2, 5, 6, 2.0 * kPi * 5 / 6.0, ai::GimbalCommand::DONE);
 }
 
 int run(const std::string& bag, const std::string& csv, const std::string& json, std::string* err) {
