@@ -8,7 +8,7 @@ namespace and hands every change to its listener as a JSON-ready event for the b
   {"type": "snapshot", "stands": [card, ...]}      every stand, its dwells included (on connect)
   {"type": "stand", "stand": card}                 a stand's card without its dwells
   {"type": "dwell", "ns": ns, "dwell": {...}, "fits": {...}, "rows": n}
-  {"type": "removed", "ns": ns}
+  {"type": "archive", "archive": {...}}             the lab archive's view (with ~archive)
 
 The fitted curve of the plot is the seed's equation (4) per phase and accelerometer,
 R(a) = c0 + c_sin sin a + c_cos cos a, fitted by unweighted least squares to the dwells of that
@@ -179,6 +179,7 @@ class Hub:
         self.listener = listener or (lambda event: None)
         self.lock = threading.Lock()
         self.stands = {}
+        self.archive = None  # accel_dashboard_archive.ArchiveView.read(), with ~archive
 
     # ---- inputs ----------------------------------------------------------------------------
 
@@ -284,9 +285,16 @@ class Hub:
                     s.fault("dashboard", "lost: " + s.lost, now)
                     self._emit_stand(s)
 
+    def set_archive(self, view):
+        """The lab archive's devices and histories (only sent when they changed)."""
+        with self.lock:
+            if view != self.archive:
+                self.archive = view
+                self.listener({"type": "archive", "archive": view})
+
     # ---- outputs ---------------------------------------------------------------------------
 
     def snapshot(self):
         with self.lock:
-            return {"type": "snapshot",
+            return {"type": "snapshot", "archive": self.archive,
                     "stands": [self.stands[ns].card(True) for ns in sorted(self.stands)]}

@@ -215,6 +215,42 @@ function drawPlots(s) {
   s.el.points.dataset.count = String(dwells.length);
 }
 
+// ---- The lab archive (with the dashboard's ~archive) -------------------------------------------
+
+const PARAMS = [["responsivity_u", "|u|", 6], ["responsivity_v", "|v|", 6], ["responsivity_w", "|w|", 6],
+  ["angle_uv", "uv (deg)", 4], ["angle_vw", "vw (deg)", 4], ["angle_wu", "wu (deg)", 4],
+  ["offset_u", "O_u", 5], ["offset_v", "O_v", 5], ["offset_w", "O_w", 5]];
+
+function renderArchive(view) {
+  const box = document.getElementById("archive");
+  if (!view) { box.hidden = true; return; }
+  box.hidden = false;
+  const parts = [el("h2", "", "Lab archive " + view.url)];
+  if (view.error) parts.push(el("p", "archive-error", "cannot read the archive: " + view.error));
+  for (const d of view.devices) {
+    const section = el("div", "archive-device");
+    section.dataset.serial = d.serial;
+    section.append(el("h3", "serial", d.serial));
+    section.append(el("div", "line", "rig " + d.rig + " \u00b7 " + d.records + " records \u00b7 latest " + d.latest));
+    const table = el("table", "result history");
+    const head = el("tr");
+    for (const t of ["time", "rig", "method"].concat(PARAMS.map((p) => p[1]))) head.append(el("th", "", t));
+    table.append(head);
+    for (const r of (view.histories[d.serial] || []).filter((r) => r.rig === d.rig)) {
+      const tr = el("tr");
+      tr.append(el("td", "", r.time), el("td", "", r.rig), el("td", "", r.method));
+      for (const [key, , digits] of PARAMS) {
+        tr.append(el("td", "", fmtFixed(r.values[key], digits) + " \u00b1 " + fmtExp(r.expanded[key], 1)));
+      }
+      table.append(tr);
+    }
+    section.append(table);
+    parts.push(section);
+  }
+  if (!view.error && !view.devices.length) parts.push(el("p", "", "no records yet"));
+  box.replaceChildren(...parts);
+}
+
 // ---- Events from the server -------------------------------------------------------------------
 
 function onStand(card) {
@@ -225,6 +261,7 @@ function onStand(card) {
 
 function onEvent(ev) {
   if (ev.type === "snapshot") {
+    renderArchive(ev.archive);
     for (const card of ev.stands) {
       const s = standOf(card.ns);
       s.dwells = new Map(card.dwells.map((d) => [d.index, d]));
@@ -232,6 +269,8 @@ function onEvent(ev) {
       onStand(card);
       drawPlots(s);
     }
+  } else if (ev.type === "archive") {
+    renderArchive(ev.archive);
   } else if (ev.type === "stand") {
     onStand(ev.stand);
   } else if (ev.type === "dwell") {

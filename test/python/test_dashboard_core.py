@@ -87,3 +87,50 @@ def test_faults_keep_the_devices_words_once_each():
     hub.on_status("/r", 2, "run aborted", {"fault": "gimbal: " + words, "state": "ABORTED"})
     faults = hub.stands["/r"].card(False)["faults"]
     assert [f["text"] for f in faults] == [words, "gimbal: " + words, "run aborted"]
+
+
+# --- The archive view (scripts/accel_dashboard_archive.py) --------------------------------------
+
+def archived_result(serial, u):
+    return {
+        "model": "joint", "model_label": "joint", "local_gravity": 9.80665,
+        "responsivity": {"u": u, "v": 0.99, "w": 1.0},
+        "responsivity_std": {"u": 1e-4, "v": 1e-4, "w": 1e-4},
+        "angles_deg": {"uv": 90.1, "vw": 89.9, "wu": 90.05},
+        "angles_std_deg": {"uv": 0.01, "vw": 0.01, "wu": 0.01},
+        "offset": {"u": 0.05, "v": -0.03, "w": 0.08},
+        "offset_std": {"u": 0.001, "v": 0.001, "w": 0.001},
+        "positions": {"x": 24, "y": 24, "z": 24},
+        "certificate": {"serial": serial, "rig": "rig1"},
+    }
+
+
+def test_archive_view_lists_devices_and_their_records_as_stored(tmp_path):
+    import accel_archive as aa
+    import accel_dashboard_archive as ada
+    url = "sqlite:///" + str(tmp_path / "archive.db")
+    engine = aa.open_archive(url)
+    serial = "<img src=x onerror=alert(1)>"
+    for i, u in enumerate((1.01, 1.0102)):
+        record, values = aa.make_record(archived_result(serial, u),
+                                        when=aa.parse_time("2026-03-0%dT12:00:00Z" % (i + 1)))
+        aa.add(engine, record, values)
+    engine.dispose()
+    view = ada.ArchiveView(url).read()
+    assert view["error"] == ""
+    assert view["devices"] == [{"serial": serial, "rig": "rig1", "records": 2,
+                                "latest": "2026-03-02T12:00:00Z"}]
+    history = view["histories"][serial]
+    assert [h["values"]["responsivity_u"] for h in history] == [1.01, 1.0102]
+    assert history[0]["expanded"]["responsivity_u"] == pytest.approx(2e-4)
+
+
+def test_archive_view_does_not_migrate_an_old_archive(tmp_path):
+    import sqlite3
+    import accel_dashboard_archive as ada
+    path = tmp_path / "empty.db"
+    sqlite3.connect(str(path)).close()
+    view = ada.ArchiveView("sqlite:///" + str(path)).read()
+    assert "not" in view["error"] and view["devices"] == []
+    tables = sqlite3.connect(str(path)).execute("SELECT name FROM sqlite_master").fetchall()
+    assert tables == []
