@@ -7,7 +7,8 @@ stand's plot within ~push_latency_s; when rig1 is done its plot holds as many po
 position_table.csv has rows, and its result table equals its result file (intrinsics.yaml, the
 keys of offline_fit's JSON) to the digits printed; rig2, killed (SIGKILL) mid-run, shows as lost
 within ~lost_within_s; its device serial, a piece of HTML, shows as text; the browser's console
-holds no error. The page at the end is saved as a PNG (~screenshot).
+holds no error. rig1's serial, also HTML, shows as text in the lab archive's view once its calibration node
+archived the result. The page at the end is saved as a PNG (~screenshot).
 """
 
 import csv
@@ -39,7 +40,7 @@ PKG = "accel_intrinsics"
 # Chromium as root in a container: no sandbox, nothing fetched from the network.
 CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                   "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                  "--window-size=1600,1300"]
+                  "--window-size=1600,1500"]
 
 
 def start_browser(profile):
@@ -72,6 +73,8 @@ class DashboardInBrowser(unittest.TestCase):
         self.kill_ns = rospy.get_param("~kill_ns", "rig2")
         self.output_dir = rospy.get_param("~output_dir")
         self.kill_serial = rospy.get_param("/%s/calibration/archive_device" % self.kill_ns)
+        # rig1's serial, also HTML, reaches the page through the lab archive (after its result).
+        self.done_serial = rospy.get_param("/%s/calibration/archive_device" % self.done_ns, "")
         self.timeout_s = rospy.get_param("~timeout_s", 120.0)
         self.push_latency_s = rospy.get_param("~push_latency_s", 1.0)
         self.lost_within_s = rospy.get_param("~lost_within_s", 5.0)
@@ -195,6 +198,13 @@ class DashboardInBrowser(unittest.TestCase):
         self.assertEqual(self.js("return document.querySelectorAll('main img').length"), 0)
         with self.assertRaises(NoAlertPresentException):
             self.browser.switch_to.alert.text
+
+        if self.done_serial:
+            serials = self.wait_for("rig1's record in the archive view", lambda: self.js(
+                "return [...document.querySelectorAll('#archive h3.serial')]"
+                ".map(h => h.textContent)"), 30.0)
+            self.assertEqual(serials, [self.done_serial])
+            self.assertEqual(self.js("return document.querySelectorAll('img').length"), 0)
 
         if self.screenshot:
             os.makedirs(os.path.dirname(self.screenshot), exist_ok=True)
