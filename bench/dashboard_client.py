@@ -2,6 +2,7 @@
 would be) reading every update for SECONDS; after each update prints a line
 `events E dwells D cpu C % over T s` (C: the CPU share of process PID, the dashboard, since the
 client connected). bench/run's node_load_dashboard keeps the last line."""
+import asyncio
 import sys
 import time
 
@@ -29,7 +30,10 @@ async def main(port, limit_s, pid):
     events = dwells = 0
     t0, c0 = time.monotonic(), ticks(pid)
     while time.monotonic() - t0 < limit_s:
-        msg = await ws.read_message()
+        try:
+            msg = await asyncio.wait_for(ws.read_message(), limit_s - (time.monotonic() - t0))
+        except asyncio.TimeoutError:
+            break
         if msg is None:
             break
         events += 1
