@@ -89,6 +89,9 @@ class DashboardInBrowser(unittest.TestCase):
     def tearDown(self):
         self.browser.quit()
         shutil.rmtree(self.profile, ignore_errors=True)
+        archive = rospy.get_param("/dashboard/archive", "")  # a new SQLite file per run
+        if archive.startswith("sqlite:///") and os.path.exists(archive[len("sqlite:///"):]):
+            os.remove(archive[len("sqlite:///"):])
 
     def on_dwell(self, msg, ns):
         with self.lock:
