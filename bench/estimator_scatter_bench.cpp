@@ -6,7 +6,7 @@
 //                                   over the Cramer-Rao bound (Fisher information of the dwell
 //                                   means with the true noise, propagated to the intrinsics)
 //   reported_std_over_scatter_<q>   mean reported standard uncertainty over that scatter
-//   eq4_scatter_over_crb_<q>        the same ratio for the seed's eq4 fit (>= 1: less efficient)
+//   eq4_scatter_over_crb_<q>        the same ratio for the eq4 fit (docs/design.md section 1) (>= 1: less efficient)
 // as `name: value unit` lines. Ratios of 1 mean an efficient estimator and honest uncertainties;
 // the Monte Carlo resolution of each ratio (1 / sqrt(2 (M - 1))) is printed too.
 // Core library only (no ROS).

@@ -1,6 +1,6 @@
 // Fit time against the number of positions per phase N (docs/design.md / issue 2 "Performance").
 //   BM_FitJoint         closed-form weighted least squares (normal equations, O(N))
-//   BM_FitEq4           the seed's 9 three-parameter fits and their combination (O(N))
+//   BM_FitEq4           eq4's 9 three-parameter fits and their combination (O(N))
 //   BM_FitJointEffect   joint + quadratic_nonlinearity[u] through Ceres (O(N) per iteration)
 // Each runs at N = 24 (the default protocol) up to N = 3600, and Google Benchmark fits the
 // complexity: "BigO" close to a constant times N and a small RMS confirm the linear cost.

@@ -6,9 +6,9 @@
 FIGURES holds bench/run's `name: value unit` lines. Prints one row per goal (figure, goal,
 measured, PASS / FAIL / not run) and exits 1 when a goal is missed or (without --allow-missing,
 which --quick runs pass) a figure with a goal was not measured. --markdown writes the same rows as
-a Markdown table (the README's Performance table), with the rows without a goal (context) too.
+a Markdown table (bench/RESULTS.md's goal table), with the rows without a goal (context) too.
 
-Each goal names its source: an issue, the README, or "set here" when no number was stated
+Each goal names its source: where the number was asked for, or "set here" when no number was stated
 anywhere and this file sets one (change it here, in one place).
 """
 import re

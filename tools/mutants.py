@@ -2,7 +2,7 @@
 """Mutation testing (issue 24): the named mutations of tools/mutants.txt, applied one at a time
 to a scratch copy of the repository with its own catkin workspace, built incrementally, and the
 tests each names run; a mutation is "caught" when they fail and "SURVIVED" when they pass.
-Run it through tools/mutants.sh (which sets up the environment); see the README."""
+Run it through tools/mutants.sh (which sets up the environment); see docs/development.md."""
 import argparse
 import fcntl
 import os

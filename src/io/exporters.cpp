@@ -11,6 +11,7 @@
 #include "accel_intrinsics/core/model/calibration_forms.h"
 #include "accel_intrinsics/core/fit/quality.h"
 #include "accel_intrinsics/io/atomic_file.h"
+#include "kalibr_noise_keys.h"
 
 namespace accel_intrinsics {
 namespace io {
@@ -157,14 +158,6 @@ ExportText imucal_text(const CalibrationToExport& c, std::vector<std::string> li
   return out;
 }
 
-double max_finite(const Eigen::Vector3d& v) {
-  double m = kUnknown;
-  for (int i = 0; i < 3; ++i) {
-    if (std::isfinite(v(i)) && !(m >= v(i))) m = v(i);
-  }
-  return m;
-}
-
 ExportText kalibr_text(const CalibrationToExport& c, std::vector<std::string> lines) {
   const core::LowerTriangularForm f = core::lower_triangular_form(c.S);
   std::vector<std::string> head = {
@@ -182,17 +175,16 @@ ExportText kalibr_text(const CalibrationToExport& c, std::vector<std::string> li
   head.insert(head.end(), lines.begin(), lines.end());
   std::string body = "imu0:\n  model: scale-misalignment\n  accelerometers:\n    M: " +
                      matrix_rows_list(f.M) + "\n";
-  const double density = max_finite(c.noise_density);
-  const double walk = max_finite(c.random_walk);
-  if (std::isfinite(density)) body += "  accelerometer_noise_density: " + num(density) + "\n";
-  if (std::isfinite(walk)) body += "  accelerometer_random_walk: " + num(walk) + "\n";
-  if (std::isfinite(c.rate_hz)) body += "  update_rate: " + num(c.rate_hz) + "\n";
-  if (!std::isfinite(density) || !std::isfinite(walk)) {
-    head.push_back(std::string("no ") + (!std::isfinite(density) ? "accelerometer_noise_density" : "") +
-                   (!std::isfinite(density) && !std::isfinite(walk) ? " or " : "") +
-                   (!std::isfinite(walk) ? "accelerometer_random_walk" : "") +
-                   " in the source result: add it from noise_report");
+  const detail::KalibrNoiseKeys keys =
+      detail::kalibr_noise_keys(c.noise_density, c.random_walk, c.rate_hz, "  ");
+  body += keys.lines;
+  std::string missing_noise;
+  for (const std::string& key : keys.missing) {
+    if (key == "update_rate") continue;  // a rate is not in every source result
+    missing_noise += (missing_noise.empty() ? "" : " or ") + key;
   }
+  if (!missing_noise.empty())
+    head.push_back("no " + missing_noise + " in the source result: add it from noise_report");
   ExportText out;
   out.text = comment_block(head) + body;
   return out;

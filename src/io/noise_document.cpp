@@ -1,5 +1,7 @@
 #include "accel_intrinsics/io/noise_document.h"
 
+#include "kalibr_noise_keys.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -75,10 +77,10 @@ std::string noise_json_text(const core::StaticRecordNoise& noise, const std::str
 
 std::string kalibr_imu_noise_yaml(const core::StaticRecordNoise& noise, const std::string& source,
                                   const std::string& rostopic) {
-  double density = 0.0, walk = 0.0;
-  for (const core::NoiseParameters& p : noise.axes) {
-    density = std::max(density, p.white_density);
-    walk = std::max(walk, p.random_walk);
+  Eigen::Vector3d density, walk;
+  for (int a = 0; a < 3; ++a) {
+    density(a) = noise.axes[a].white_density;
+    walk(a) = noise.axes[a].random_walk;
   }
   std::string out;
   out += "# kalibr IMU configuration, accelerometer keys, from accel_intrinsics noise_report\n";
@@ -92,9 +94,7 @@ std::string kalibr_imu_noise_yaml(const core::StaticRecordNoise& noise, const st
   out += "# Measured on a static record: kalibr's users often inflate them (e.g. x10) for the\n";
   out += "# unmodelled effects of a moving platform. Add the gyroscope_* keys from your gyro.\n";
   out += "rostopic: " + rostopic + "\n";
-  out += "update_rate: " + num(noise.rate_hz) + "\n";
-  out += "accelerometer_noise_density: " + num(density) + "\n";
-  out += "accelerometer_random_walk: " + num(walk) + "\n";
+  out += detail::kalibr_noise_keys(density, walk, noise.rate_hz, "").lines;
   return out;
 }
 

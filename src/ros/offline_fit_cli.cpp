@@ -98,6 +98,10 @@ bool parse_offline_fit_arguments(const std::vector<std::string>& arguments,
                  "budget and expanded uncertainties (k = 2) to the result");
   app.add_option("--report", args->report_pdf,
                  "write a calibration certificate (PDF) from the result");
+  app.add_option("--residuals-csv", args->residuals_csv,
+                 "write the residuals of the fit (and, with --analyze, of the refit with the "
+                 "named effects) per dwell and accelerometer as CSV, for scripts/plot_residuals")
+      ->type_name("FILE");
   auto* archive = app.add_option("--archive", args->archive,
                                  "add the result to the lab archive (sqlite:///PATH or "
                                  "postgresql://...; scripts/archive)")

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "../core/random_device.h"
+#include "../support/random_device.h"
 #include "accel_intrinsics/core/analysis/discrepancy.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/simulation/simulator.h"

@@ -13,7 +13,7 @@
 #include <random>
 #include <string>
 
-#include "../core/random_device.h"
+#include "../support/random_device.h"
 #include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/simulation/simulator.h"

@@ -46,7 +46,7 @@ SimulationOptions device_options(std::uint64_t seed) {
   return sim;
 }
 
-// The specific force of docs/design.md section 1 (seed eq. 4), written out again here.
+// The specific force of docs/design.md section 1, written out again here.
 Eigen::Vector3d true_force(const DwellRecord& row, double g) {
   const double s = std::sin(row.angle_rad), c = std::cos(row.angle_rad);
   switch (row.phase) {

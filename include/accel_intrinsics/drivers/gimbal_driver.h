@@ -1,4 +1,4 @@
-// The gimbal behind an interface (STYLE.md "Hardware behind an interface, injected"): the
+// The gimbal behind an interface (hardware behind an interface, injected): the
 // controller node drives any GimbalDriver; SimulatedGimbalDriver is the default backend.
 //
 // Frames (REP 103, z up in world): world -> gimbal -> dut.

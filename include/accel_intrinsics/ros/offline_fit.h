@@ -97,6 +97,8 @@ struct OfflineFitArguments {
   std::vector<std::string> exports;  // "NAME=FILE", each parsed by io::parse_export_spec
   std::string budget;      // uncertainty budget file (YAML); empty: type A only
   std::string report_pdf;  // certificate PDF; empty: none
+  // Residual CSV for scripts/plot_residuals (offline_fit_residuals.h); empty: none.
+  std::string residuals_csv;
   // Lab archive URL (scripts/archive, docs/design.md section 13); empty: none. device and rig name
   // the record when the budget file's certificate block has no serial or rig.
   std::string archive;

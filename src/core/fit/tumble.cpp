@@ -10,7 +10,7 @@
 
 #include "accel_intrinsics/core/model/intrinsics.h"
 #include "accel_intrinsics/core/noise/noise.h"
-#include "accel_intrinsics/core/noise/slow_part_fit.h"
+#include "tumble_internal.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -19,48 +19,7 @@ const char* const kTumbleFrame =
     "sensor frame: u along x, v in the x-y plane (S lower-triangular); the rotation of S is not "
     "observable without known orientations";
 
-namespace {
-
-constexpr int kParams = 9;  // S lower-triangular (6) then O (3)
-// Row-major index in S of each lower-triangular parameter.
-constexpr std::array<int, 6> kLowerIndex{{0, 3, 4, 6, 7, 8}};
-constexpr std::array<int, 6> kLowerRow{{0, 1, 1, 2, 2, 2}};
-constexpr std::array<int, 6> kLowerCol{{0, 0, 1, 0, 1, 2}};
-const char* const kParamNames[kParams] = {"S_ux", "S_vx", "S_vy", "S_wx", "S_wy", "S_wz",
-                                          "O_u",  "O_v",  "O_w"};
-const char* const kIntrinsicNames[9] = {"responsivity_u", "responsivity_v", "responsivity_w",
-                                        "angle_uv",       "angle_vw",       "angle_wu",
-                                        "offset_u",       "offset_v",       "offset_w"};
-
-using Vector9 = Eigen::Matrix<double, kParams, 1>;
-using Matrix9 = Eigen::Matrix<double, kParams, kParams>;
-
-struct Parameters {
-  Eigen::Matrix3d S = Eigen::Matrix3d::Identity();  // lower-triangular
-  Eigen::Vector3d O = Eigen::Vector3d::Zero();
-
-  Vector9 vector() const {
-    Vector9 v;
-    for (int k = 0; k < 6; ++k) v(k) = S(kLowerRow[k], kLowerCol[k]);
-    v.tail<3>() = O;
-    return v;
-  }
-  static Parameters from(const Vector9& v) {
-    Parameters p;
-    p.S.setZero();
-    for (int k = 0; k < 6; ++k) p.S(kLowerRow[k], kLowerCol[k]) = v(k);
-    p.O = v.tail<3>();
-    return p;
-  }
-};
-
-// One rest under the parameters: the specific force a = P (m - O), |a| - g and its gradient.
-struct RestTerm {
-  Eigen::Vector3d a;
-  double residual = 0.0;  // |a| - g
-  Vector9 gradient;       // d residual / d parameters
-  Eigen::Vector3d c;      // P^T a_hat = d|a| / dm
-};
+namespace tumble_detail {
 
 RestTerm rest_term(const Parameters& p, const Eigen::Vector3d& mean, double g) {
   RestTerm t;
@@ -81,7 +40,7 @@ double rest_sigma(const RestTerm& t, const Eigen::Vector3d& se) {
   return std::sqrt(t.c.cwiseProduct(se).squaredNorm());
 }
 
-std::string number(double x, int precision = 3) {
+std::string number(double x, int precision) {
   std::ostringstream out;
   out << std::setprecision(precision) << x;
   return out.str();
@@ -166,26 +125,6 @@ bool has_usable_std(const PositionTable& table) {
   return false;
 }
 
-struct Normal {
-  Matrix9 N = Matrix9::Zero();
-  Vector9 b = Vector9::Zero();
-  double chi2 = 0.0;
-};
-
-// The rests to fit and how their means err. White noise: each mean on its own, standard errors
-// se. A noise model with a slow part (docs/design.md section 12): the means of neighbouring rests err
-// together; R_s = L_s L_s^T from dwell_correlation (noise.h, the one definition of the slow
-// covariance between dwells) is their correlation per accelerometer in units of se, i.e.
-// Cov(m_i(s), m_j(s)) = se_i(s) se_j(s) R_s(i, j).
-struct TumbleProblem {
-  const PositionTable* table = nullptr;
-  std::vector<Eigen::Vector3d> se;
-  bool unit_weights = false;
-  double g = kStandardGravity;
-  bool gls = false;
-  Eigen::MatrixXd R[3];
-};
-
 TumbleProblem make_problem(const PositionTable& table, double g, const NoiseModel& noise_model) {
   TumbleProblem problem;
   problem.table = &table;
@@ -200,20 +139,6 @@ TumbleProblem make_problem(const PositionTable& table, double g, const NoiseMode
   for (int s = 0; s < 3; ++s) problem.R[s] = corr->L[s] * corr->L[s].transpose();
   return problem;
 }
-
-// How the rests are weighted at an estimate. White: each by the sigma of its residual
-// (rest_sigma). GLS: jointly, by the lower Cholesky factor L of the residuals' covariance.
-// The residual r_i = |P (m_i - O)| - g depends on the mean m_i through c_i = P^T a_hat_i (first
-// order), so C(i, j) = sum_s c_i(s) c_j(s) Cov(m_i(s), m_j(s)), the white variances included.
-// The gradients c_i are taken at the current estimate and recomputed every Gauss-Newton
-// iteration, as the white sigmas are: they depend on P and each rest's direction, which the start
-// ellipsoid already gives far better than the weights need, so the iterations barely move them;
-// recomputing costs one rests x rests Cholesky per iteration and with no slow part gives exactly
-// the white weights. The step halving keeps the iteration's weights so that its costs compare.
-struct RestWeights {
-  std::vector<double> sigma;  // white
-  Eigen::MatrixXd L;          // GLS
-};
 
 RestWeights weights_at(const TumbleProblem& problem, const Parameters& p) {
   const PositionTable& table = *problem.table;
@@ -284,14 +209,6 @@ Parameters canonical(Parameters p) {
   return p;
 }
 
-// The fit's parameters, information matrix (unscaled) and the covariance scale.
-struct TumbleSolution {
-  Parameters p;
-  Matrix9 information = Matrix9::Zero();
-  double chi2 = 0.0;  // at p, with the weights at p
-  double scale = 1.0;
-};
-
 // Jacobian of the nine intrinsics (responsivities, angles, offsets) by the nine parameters.
 Matrix9 intrinsic_jacobian(const Eigen::Matrix3d& S) {
   const Eigen::Matrix<double, 6, 9> J = intrinsics_jacobian(S);  // by S row-major
@@ -352,7 +269,9 @@ TumbleSolution solve(const TumbleProblem& problem) {
   return out;
 }
 
-}  // namespace
+}  // namespace tumble_detail
+
+using namespace tumble_detail;
 
 FitResult fit_tumble(const PositionTable& table, const TumbleFitOptions& options) {
   const std::size_t n = table.rows.size();
@@ -411,271 +330,6 @@ FitResult fit_tumble(const PositionTable& table, const TumbleFitOptions& options
   }
   r.positions = {{0, 0, 0}};
   return r;
-}
-
-NoiseModel slow_part_from_tumble(const PositionTable& table, const NoiseModel& rest_model,
-                                 double local_gravity) {
-  NoiseModel model = rest_model;
-  const std::size_t n = table.rows.size();
-  const std::vector<DwellRecord>& blocks = rest_model.rest_blocks;
-  if (!model.slow_part_to_fit() || n < kParams + 4 || blocks.size() < 4) return model;
-  const TumbleProblem problem = make_problem(table, local_gravity, NoiseModel());
-  if (problem.unit_weights) return model;
-  const Parameters p = solve(problem).p;
-  // The observations, normalized to unit white variance, each with its interval, its row of the
-  // Jacobian and how each accelerometer's mean error reaches it (`load`):
-  //  - every rest but the long one: the white fit's scalar residual (|a_i| - g) / sigma_i, its
-  //    gradient by the nine parameters, load c_i / sigma_i (first order, as the GLS fit);
-  //  - the long rest's blocks, each accelerometer apart: (mean - level) / se, the level three
-  //    nuisance parameters (so only the blocks' variation about it counts), load 1 / se.
-  // The rest's blocks pin the slow part's short-time shape on all three axes; the rests spread
-  // over the run add how it grows over minutes, which the offsets carry.
-  const double rest_start = blocks.front().t_start_s, rest_end = blocks.back().t_end_s;
-  struct Observation {
-    double t0, t1, value;
-    Eigen::Vector3d load;
-    Eigen::Matrix<double, 1, kParams + 3> gradient;
-  };
-  std::vector<Observation> obs;
-  for (std::size_t i = 0; i < n; ++i) {
-    const DwellRecord& row = table.rows[i];
-    if (row.t_end_s >= rest_start && row.t_start_s <= rest_end) continue;  // the long rest
-    const RestTerm t = rest_term(p, row.mean, local_gravity);
-    const double sigma = rest_sigma(t, problem.se[i]);
-    Observation o{row.t_start_s, row.t_end_s, t.residual / sigma, t.c / sigma, {}};
-    o.gradient.setZero();
-    o.gradient.head<kParams>() = t.gradient.transpose() / sigma;
-    obs.push_back(o);
-  }
-  Eigen::Vector3d level = Eigen::Vector3d::Zero();
-  for (const DwellRecord& b : blocks) level += b.mean / static_cast<double>(blocks.size());
-  for (const DwellRecord& b : blocks) {
-    for (int s = 0; s < 3; ++s) {
-      const double se = b.std(s) / std::sqrt(static_cast<double>(b.n));
-      if (!(se > 0.0)) return model;
-      Observation o{b.t_start_s, b.t_end_s, (b.mean(s) - level(s)) / se,
-                    Eigen::Vector3d::Zero(), {}};
-      o.load(s) = 1.0 / se;
-      o.gradient.setZero();
-      o.gradient(kParams + s) = 1.0 / se;
-      obs.push_back(o);
-    }
-  }
-  const Eigen::Index m = static_cast<Eigen::Index>(obs.size());
-  Eigen::VectorXd z(m);
-  Eigen::MatrixXd X(m, kParams + 3);
-  for (Eigen::Index i = 0; i < m; ++i) {
-    z(i) = obs[static_cast<std::size_t>(i)].value;
-    X.row(i) = obs[static_cast<std::size_t>(i)].gradient;
-  }
-  const Eigen::MatrixXd U = residual_complement(X);
-  if (U.cols() < 4) return model;
-  const Eigen::VectorXd w = U.transpose() * z;
-  const RunSpan run = run_span(table);
-  const double t_first = run.t_first;
-  const double span = std::max(run.length(), 1.0);
-  // Each accelerometer's candidate kernels, projected: U^T K U with K(i, j) = load_i(s) load_j(s)
-  // Cov_unit(i, j) over the observations' intervals.
-  std::vector<AxisNoiseModel> shapes[3];
-  std::vector<Eigen::MatrixXd> kernels[3];
-  for (int s = 0; s < 3; ++s) {
-    shapes[s] = slow_part_shapes(span, model.axes[s]);
-    for (const AxisNoiseModel& shape : shapes[s]) {
-      NoiseModel unit;
-      unit.axes[s] = shape;
-      Eigen::MatrixXd K = Eigen::MatrixXd::Zero(m, m);
-      for (Eigen::Index i = 0; i < m; ++i) {
-        const Observation& a = obs[static_cast<std::size_t>(i)];
-        if (a.load(s) == 0.0) continue;
-        for (Eigen::Index j = 0; j <= i; ++j) {
-          const Observation& b = obs[static_cast<std::size_t>(j)];
-          if (b.load(s) == 0.0) continue;
-          K(i, j) = K(j, i) =
-              a.load(s) * b.load(s) * unit.slow_covariance(s, a.t0, a.t1, b.t0, b.t1, t_first);
-        }
-      }
-      kernels[s].push_back(U.transpose() * K * U);
-    }
-  }
-  // A rest's scalar residual mixes the three accelerometers, so their slow parts are fitted
-  // together: coordinate ascent of the restricted likelihood, each
-  // accelerometer's shape and amplitude with the other two held, until no choice changes.
-  const Eigen::Index k = U.cols();
-  AxisNoiseModel fitted[3];
-  Eigen::MatrixXd held[3];
-  int chosen[3] = {-1, -1, -1};
-  for (int s = 0; s < 3; ++s) held[s] = Eigen::MatrixXd::Zero(k, k);
-  for (int sweep = 0; sweep < 10; ++sweep) {
-    bool changed = false;
-    for (int s = 0; s < 3; ++s) {
-      Eigen::MatrixXd B = Eigen::MatrixXd::Identity(k, k);
-      for (int o = 0; o < 3; ++o)
-        if (o != s) B += held[o];
-      const Eigen::LLT<Eigen::MatrixXd> llt(B);
-      if (llt.info() != Eigen::Success) return model;
-      const Eigen::MatrixXd L = llt.matrixL();
-      const SlowShapeChoice choice = choose_slow_shape(w, kernels[s], shapes[s], L);
-      const int best_shape = choice.shape;
-      const SlowAmplitude& best = choice.fit;
-      const AxisNoiseModel next =
-          best_shape >= 0 ? scaled_shape(shapes[s][static_cast<std::size_t>(best_shape)], best)
-                          : AxisNoiseModel();
-      if (best_shape != chosen[s] ||
-          std::abs(next.gm_sigma - fitted[s].gm_sigma) > 1e-3 * std::abs(next.gm_sigma) ||
-          std::abs(next.rw_density - fitted[s].rw_density) > 1e-3 * std::abs(next.rw_density))
-        changed = true;
-      chosen[s] = best_shape;
-      fitted[s] = next;
-      held[s] = Eigen::MatrixXd::Zero(k, k);
-      if (best_shape >= 0)
-        held[s] = best.amplitude * kernels[s][static_cast<std::size_t>(best_shape)];
-    }
-    if (!changed) break;
-  }
-  for (int s = 0; s < 3; ++s) {
-    AxisNoiseModel& axis = model.axes[s];
-    axis.gm_sigma = fitted[s].gm_sigma;
-    axis.gm_tau_s = fitted[s].gm_tau_s;
-    axis.rw_density = fitted[s].rw_density;
-    axis.slow_scale_rel_var = fitted[s].slow_scale_rel_var;
-  }
-  model.source +=
-      slow_part_note("the long rest's blocks and the tumble's rest means together", model);
-  return model;
-}
-
-std::vector<Eigen::Vector3d> rest_up_directions(const FitResult& fit, const PositionTable& table) {
-  std::vector<Eigen::Vector3d> out;
-  out.reserve(table.rows.size());
-  for (const DwellRecord& row : table.rows) {
-    const Eigen::Vector3d a = fit.S.lu().solve(row.mean - fit.O);
-    out.push_back(a.normalized());
-  }
-  return out;
-}
-
-TumbleCoverage tumble_coverage(const FitResult& fit, const PositionTable& table, double cone_deg) {
-  TumbleCoverage c;
-  c.cone_deg = cone_deg;
-  const std::vector<Eigen::Vector3d> ups = rest_up_directions(fit, table);
-  const char* axis_names[3] = {"u", "v", "w"};
-  for (int s = 0; s < 3; ++s) {
-    const Eigen::Vector3d axis = fit.S.row(s).normalized();
-    for (int side = 0; side < 2; ++side) {
-      double best = 180.0;
-      for (const Eigen::Vector3d& up : ups) {
-        const double cosine = std::clamp((side == 0 ? 1.0 : -1.0) * up.dot(axis), -1.0, 1.0);
-        best = std::min(best, std::acos(cosine) * 180.0 / M_PI);
-      }
-      c.closest_deg[s][side] = best;
-      if (best > cone_deg) {
-        c.missing.push_back(std::string("no rest with ") + axis_names[s] + " pointing " +
-                            (side == 0 ? "up" : "down") + " within " + number(cone_deg) +
-                            " deg (closest " + number(best, 3) + " deg)");
-      }
-    }
-  }
-  return c;
-}
-
-std::vector<RelativeUncertainty> relative_uncertainties(const FitResult& fit) {
-  std::vector<RelativeUncertainty> out;
-  const Intrinsics& in = fit.intrinsics;
-  for (int k = 0; k < 3; ++k)
-    out.push_back({kIntrinsicNames[k], in.responsivity_std(k) / in.responsivity(k)});
-  for (int k = 0; k < 3; ++k) out.push_back({kIntrinsicNames[3 + k], in.angles_std_rad(k)});
-  for (int k = 0; k < 3; ++k)
-    out.push_back(
-        {kIntrinsicNames[6 + k], fit.O_std(k) / (in.responsivity(k) * fit.local_gravity)});
-  return out;
-}
-
-PoseSuggestion suggest_next_pose(const FitResult& fit, const PositionTable& table, int candidates) {
-  if (fit.model != FitModel::Tumble)
-    throw std::invalid_argument("suggest_next_pose needs a tumble fit");
-  const double g = fit.local_gravity;
-  Parameters p;
-  p.S = fit.S;
-  p.O = fit.O;
-  const TumbleProblem problem = make_problem(table, g, NoiseModel());
-  const std::vector<Eigen::Vector3d>& se = problem.se;
-  const bool unit_weights = problem.unit_weights;
-  const Normal n = accumulate(problem, p, weights_at(problem, p));
-  const Matrix9 C = checked_tumble_inverse(n.N);  // unscaled
-  const double scale = fit.reduced_chi2 > 1.0 || unit_weights ? fit.reduced_chi2 : 1.0;
-  // The typical noise of one more rest: the median standard error per axis.
-  Eigen::Vector3d typical;
-  for (int s = 0; s < 3; ++s) {
-    std::vector<double> v;
-    for (const Eigen::Vector3d& e : se) v.push_back(e(s));
-    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-    typical(s) = v[v.size() / 2];
-  }
-  const Matrix9 T = intrinsic_jacobian(fit.S);
-  const Vector9 scales = intrinsic_scales(fit.S, g);
-  // Variances of the nine intrinsics now (unscaled), and C T^T for the updates.
-  const Eigen::Matrix<double, 9, 9> CT = C * T.transpose();
-  Vector9 variance;
-  for (int k = 0; k < 9; ++k) variance(k) = T.row(k).dot(CT.col(k));
-  auto relative = [&](const Vector9& var) {
-    return (var.cwiseMax(0.0) * scale).cwiseSqrt().cwiseQuotient(scales);
-  };
-  const Vector9 now = relative(variance);
-  int target = 0;
-  now.maxCoeff(&target);
-  PoseSuggestion best;
-  best.target = kIntrinsicNames[target];
-  best.relative_std_now = now(target);
-  best.relative_std_after = now(target);
-  double best_largest = now.maxCoeff();
-  // Candidates on a Fibonacci sphere. One more rest with gradient j and noise sigma changes each
-  // variance by -(t_k^T C j)^2 / (sigma^2 + j^T C j) (Sherman-Morrison on the information); the
-  // best candidate has the smallest largest relative uncertainty afterwards.
-  const double golden = M_PI * (3.0 - std::sqrt(5.0));
-  for (int i = 0; i < candidates; ++i) {
-    const double z = 1.0 - 2.0 * (i + 0.5) / candidates;
-    const double radius = std::sqrt(std::max(0.0, 1.0 - z * z));
-    const Eigen::Vector3d up(radius * std::cos(golden * i), radius * std::sin(golden * i), z);
-    const Eigen::Vector3d mean = p.S * (g * up) + p.O;
-    const RestTerm term = rest_term(p, mean, g);
-    const double sigma = unit_weights ? 1.0 : rest_sigma(term, typical);
-    const Vector9& j = term.gradient;
-    const Vector9 tCj = CT.transpose() * j;
-    const double denominator = sigma * sigma + j.dot(C * j);
-    const Vector9 after = relative(variance - tCj.cwiseProduct(tCj) / denominator);
-    const double largest = after.maxCoeff();
-    if (largest < best_largest) {
-      best_largest = largest;
-      best.up = up;
-      best.relative_std_after = after(target);
-    }
-  }
-  best.largest_after = best_largest;
-  best.words = describe_pose(best.up);
-  return best;
-}
-
-std::string describe_pose(const Eigen::Vector3d& up_in) {
-  const Eigen::Vector3d up = up_in.normalized();
-  const char* axis[3] = {"x", "y", "z"};
-  for (int k = 0; k < 3; ++k) {
-    const double elevation = std::asin(std::clamp(up(k), -1.0, 1.0)) * 180.0 / M_PI;
-    if (elevation >= 80.0) return std::string(axis[k]) + " axis pointing straight up";
-    if (elevation <= -80.0) return std::string(axis[k]) + " axis pointing straight down";
-  }
-  // Name the axes that tilt noticeably, the steepest first.
-  std::array<int, 3> order{{0, 1, 2}};
-  std::sort(order.begin(), order.end(),
-            [&](int a, int b) { return std::abs(up(a)) > std::abs(up(b)); });
-  std::string words;
-  for (int k : order) {
-    const double elevation = std::asin(std::clamp(up(k), -1.0, 1.0)) * 180.0 / M_PI;
-    if (std::abs(elevation) < 10.0) continue;
-    if (!words.empty()) words += ", ";
-    words += std::string(axis[k]) + " axis " + number(std::round(std::abs(elevation)), 3) +
-             " deg " + (elevation > 0.0 ? "up" : "down");
-  }
-  return words.empty() ? "level" : words;
 }
 
 }  // namespace core

@@ -1,4 +1,5 @@
-// Intrinsic parameters (seed eqs. 6, 7) and their GUM uncertainty.
+// Intrinsic parameters (docs/design.md section 1, eqs. 6, 7 of its reference [1]) and their
+// GUM uncertainty.
 //
 // With u, v, w the rows of S:
 //   |u| = sqrt(u . u)                                    (eq. 6)

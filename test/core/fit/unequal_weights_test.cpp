@@ -2,7 +2,7 @@
 // the accelerometers' noise varies 8x, so every weight of the least-squares fits differs and a
 // misplaced weight shows.
 //  - Both models equal an independent weighted least squares written here from docs/design.md
-//    section 1 (plain Eigen normal equations; eq4: seed eq. (4) per accelerometer and phase,
+//    section 1 (plain Eigen normal equations; eq4: eq. (4) per accelerometer and phase,
 //    inverse-variance combination of the two estimates of each component, eq. (5) for O_u),
 //    values and standard uncertainties alike.
 //  - Monte Carlo: the scatter of O, the per-phase offsets O_up and P = S^-1 over many simulated

@@ -1,4 +1,4 @@
-// Tests of the intrinsic parameters (seed eqs. 6, 7), their GUM propagation, the conversion
+// Tests of the intrinsic parameters (docs/design.md section 1), their GUM propagation, the conversion
 // from a measured cross-sensitivity matrix, and the mounting invariance of fitted intrinsics.
 #include "accel_intrinsics/core/model/intrinsics.h"
 

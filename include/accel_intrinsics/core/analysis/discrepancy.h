@@ -43,6 +43,7 @@
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/model/effects.h"
 #include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/fit/preconditions.h"
 #include "accel_intrinsics/core/model/model.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
 
@@ -102,18 +103,6 @@ void validate(const AnalysisOptions& options);
 // when every dwell has a temperature and they span min_temperature_span_k.
 std::vector<Effect> default_candidates(const PositionTable& table,
                                        double min_temperature_span_k = 0.5);
-
-// Whether the dwell temperatures of `table` let the analysis screen the temperature effects, and
-// if not, why (for AnalysisResult::not_screened).
-struct TemperatureCoverage {
-  std::size_t rows = 0;
-  std::size_t rows_with_temperature = 0;
-  double span_k = 0.0;  // max - min of the dwell temperatures (rows that have one)
-  bool screenable = false;
-  std::string reason;  // empty when screenable
-};
-TemperatureCoverage temperature_coverage(const PositionTable& table,
-                                         double min_temperature_span_k);
 
 // Whole-run summary of a gap.
 struct GapSummary {

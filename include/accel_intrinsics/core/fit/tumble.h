@@ -61,7 +61,8 @@ FitResult fit_tumble(const PositionTable& table, const TumbleFitOptions& options
 // mixes the three accelerometers (through c_i = P^T a_hat_i), so the three are fitted together
 // by coordinate ascent. Where the data do not reject a random walk (log-likelihood within 2 of
 // the best shape) it is kept: one tumble cannot tell it from a long Gauss-Markov bias whose level
-// the offsets absorb, and the walk does not assume the bias stopped wandering (tumble.cpp).
+// the offsets absorb, and the walk does not assume the bias stopped wandering
+// (tumble_slow_part.cpp).
 // Measured over 60 simulated tumbles each (test/core/noise/correlated_noise_test.cpp), offsets' RMS
 // z-score with the model from the rest alone / fitted here: Gauss-Markov 0.91 / 0.84, random
 // walk 2.55 / 1.32 (1.0 is right; the walk's density comes from about ten rests per axis).

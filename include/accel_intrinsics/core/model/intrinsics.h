@@ -1,4 +1,5 @@
-// Intrinsic parameters (seed eqs. 6, 7) and their uncertainty (GUM: Jacobian propagation).
+// Intrinsic parameters (docs/design.md section 1, eqs. 6, 7 of its reference [1]) and their
+// uncertainty (GUM: Jacobian propagation).
 #pragma once
 
 #include <Eigen/Core>

@@ -1,5 +1,5 @@
 // The rotation protocol (docs/design.md section 1): phases x, y, z, N positions each, and the
-// specific force the seed's equation (4) assigns to a commanded angle.
+// specific force eq. (4) of docs/design.md's reference [1] assigns to a commanded angle.
 #pragma once
 
 #include <Eigen/Core>

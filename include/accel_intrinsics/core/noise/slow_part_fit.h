@@ -90,5 +90,16 @@ std::string slow_part_note(const std::string& fitted_to, const NoiseModel& model
 // 0, with the amplitude's relative variance as its slow_scale_rel_var.
 AxisNoiseModel scaled_shape(const AxisNoiseModel& shape, const SlowAmplitude& fitted);
 
+// The slow part refitted to a gimbal run's dwell means (discrepancy.h slow_part_from_run, which
+// fits the base model and hands over its residuals, the dwells' white standard errors `se` and
+// the Jacobian J of the base model by its parameters, rows 3 row + s, each divided by se):
+// per accelerometer, the restricted likelihood of the residuals outside J's column space under
+// each of slow_part_shapes; the long rest enters as its blocks (NoiseModel::rest_blocks) when
+// `model` carries them. Returns `model` with its slow part replaced and the source noted.
+NoiseModel slow_part_from_residuals(const PositionTable& table, NoiseModel model,
+                                    const std::vector<Eigen::Vector3d>& residuals,
+                                    const std::vector<Eigen::Vector3d>& se,
+                                    const Eigen::MatrixXd& J);
+
 }  // namespace core
 }  // namespace accel_intrinsics

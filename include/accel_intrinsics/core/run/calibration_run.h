@@ -40,60 +40,11 @@
 #include "accel_intrinsics/core/noise/noise.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/analysis/raw_stream_analysis.h"
+#include "accel_intrinsics/core/run/run_actions.h"
+#include "accel_intrinsics/core/run/run_transitions.h"
 
 namespace accel_intrinsics {
 namespace core {
-
-enum class RunState {
-  Idle,              // no gimbal command yet (or since a reset)
-  Running,           // the protocol runs; the gimbal moves between dwells
-  Dwelling,          // inside a dwell (latest command: SETTLED)
-  WaitingForResume,  // a position is to be measured again, or a restart resumed: the controller
-                     // has not yet confirmed the rewind
-  Fitting,           // DONE received: waiting for the reorder window, or the fit is running
-  Done,              // fitted: the result is out
-  FitFailed,         // the fit after DONE failed (too few dwells, ...)
-  Aborted,           // a watchdog or the gimbal controller aborted the run
-};
-const char* run_state_name(RunState state);
-
-// What moves the run from one state to another. The run raises exactly these, each in one
-// place, and changes its state only through run_transition().
-enum class RunEvent {
-  Reset,            // reset(): discarded (also when a new run starts)
-  RestoredAborted,  // restore() of a checkpoint whose run was aborted
-  Moving,           // a gimbal MOVING (or a DONE the run ignores: inside a blackout)
-  Settled,          // a gimbal SETTLED: a dwell begins
-  DoneReceived,     // a gimbal DONE the run takes: fit once the reorder window has passed
-  DoneDiscarded,    // the window after DONE passed, but the run is aborted: no fit
-  FitStarted,       // FitNow handed out
-  ClockMismatch,    // no fit: IMU and gimbal stamp on two clocks (the fit error says the offset)
-  FitPublished,     // on_fit_finished: published
-  FitFailed,        // on_fit_finished: the fit failed
-  FitWithheld,      // on_fit_finished: not published, no error (shutdown)
-  FaultRetried,     // a fault (watchdog or the controller's): the position is measured again
-  FaultAborted,     // a fault that ends the run (no retry, or max_retries reached)
-  ControllerFault,  // the controller aborted by itself: retried at tick() after the window
-  ResumeRequested,  // the controller is to rewind (this node or the controller restarted)
-  ResumeConfirmed,  // the controller rewound and no other rewind is pending
-  ResumeRefused,    // the controller refused to rewind: the run is aborted
-};
-const char* run_event_name(RunEvent event);
-
-// One row of the transition table. `collecting`: the target is where the run's inputs put it:
-// Fitting while a DONE waits for its window or a fit runs, else Idle (no command of this run
-// yet), Dwelling (latest command SETTLED) or Running.
-struct RunTransition {
-  RunState from;
-  RunEvent event;
-  RunState to;
-  bool collecting;
-};
-// The whole table. A (state, event) pair that is not in it is ignored: the state stays (for
-// example a late DONE while the run waits for a rewind, or any command after it was aborted).
-const std::vector<RunTransition>& run_transition_table();
-// The row for (from, event), or nullptr when the pair is ignored.
-const RunTransition* run_transition(RunState from, RunEvent event);
 
 struct RunOptions {
   AssemblerOptions assembler;               // settle_discard_s, reorder_window_s
@@ -116,46 +67,6 @@ struct RunOptions {
   bool check_clock = true;
   ClockCheckOptions clock;
 };
-
-// What the run asks of the gimbal controller (ResumeAt, Abort).
-struct ControllerRequest {
-  Phase phase = Phase::X;
-  std::uint32_t step = 0;
-  int approach = +1;   // direction the position is approached from (-1: return sweep)
-  bool after = false;  // continue at the position after (phase, step, approach)
-  std::string reason;
-  std::uint64_t run_generation = 0;  // replies to a request of a reset run are ignored
-};
-
-struct RunAction {
-  enum class Kind {
-    DwellAccepted,    // row: append it to the checkpointed position table
-    Log,              // level, text
-    CheckpointState,  // write checkpoint_state()
-    ClearCheckpoint,  // remove the checkpoint files (a new run starts)
-    FitNow,           // fit table() (with recorded_moves() for the timing lag)
-    ResumeAt,         // request: call gimbal_controller/resume, then on_resume_reply()
-    Abort,            // request.reason: call gimbal_controller/abort
-  };
-  enum class Level { Info, Warn, Error };
-  Kind kind = Kind::Log;
-  Level level = Level::Info;
-  std::string text;
-  bool repeating = false;     // Log of a counter that may grow fast (drops): throttle it
-  DwellRecord row;            // DwellAccepted
-  ControllerRequest request;  // ResumeAt, Abort
-  // FitNow: what to fit (a copy: the run may move on before the shell fits), the recorded
-  // moves (record_moves) and the ticket to hand back to fit_may_publish / on_fit_finished.
-  PositionTable table;
-  std::vector<GimbalEvent> move_commands;
-  std::vector<ImuSample> move_samples;
-  AssemblerCounters counters;  // of the run at the fit (the result's "samples" block)
-  // FitNow: the noise model of the run's long rest, to weight the fit and the analysis with
-  // (core::with_noise_model); none: white.
-  std::optional<NoiseModel> noise_model;
-  std::uint64_t fit_ticket = 0;
-};
-using RunActions = std::vector<RunAction>;
 
 // The small checkpoint beside the position table: enough to resume after a restart.
 struct CheckpointState {
