@@ -7,8 +7,8 @@ stand's plot within ~push_latency_s; when rig1 is done its plot holds as many po
 position_table.csv has rows, and its result table equals its result file (intrinsics.yaml, the
 keys of offline_fit's JSON) to the digits printed; rig2, killed (SIGKILL) mid-run, shows as lost
 within ~lost_within_s; its device serial, a piece of HTML, shows as text; the browser's console
-holds no error. rig1's serial, also HTML, shows as text in the lab archive's view once its calibration node
-archived the result. The page at the end is saved as a PNG (~screenshot).
+holds no error. rig1's serial, also HTML, shows as text in the lab archive's view once its
+calibration node archived the result. The page at the end is saved as a PNG (~screenshot).
 """
 
 import csv
@@ -155,7 +155,8 @@ class DashboardInBrowser(unittest.TestCase):
             time.sleep(0.05)
         else:
             self.fail("rig %s shows no result after %.0f s" % (self.done_ns, self.timeout_s))
-        self.assertEqual(late, [], "points later than %.1f s (expected, shown)" % self.push_latency_s)
+        self.assertEqual(late, [], "points later than %.1f s (expected, shown)"
+                         % self.push_latency_s)
         self.assertGreaterEqual(len(seen_counts), 4, "the plot did not grow dwell by dwell: %s"
                                 % sorted(seen_counts))
 
@@ -181,7 +182,8 @@ class DashboardInBrowser(unittest.TestCase):
             value = doc
             for part in key.split("."):
                 value = value[part]
-            self.assertTrue(printed_matches(text, value), "%s: shown %s, file %r" % (key, text, value))
+            self.assertTrue(printed_matches(text, value),
+                            "%s: shown %s, file %r" % (key, text, value))
 
         # rig2 is killed mid-run (SIGKILL: nothing unregisters): lost within lost_within_s.
         info = self.card_info(self.kill_ns)

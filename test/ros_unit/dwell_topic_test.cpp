@@ -1,5 +1,5 @@
-// calibration/dwell (accel_intrinsics/Dwell, docs/design.md section 17): a row of the position table
-// as the message says it, and offline_fit reading a bag that holds the topic beside the run (as
+// calibration/dwell (accel_intrinsics/Dwell, docs/design.md section 17): a row of the position
+// table as the message says it, and offline_fit reading a bag that holds the topic beside the run (as
 // record.launch records it) exactly as the same bag without it: the topic is ignored as any other.
 #include <gtest/gtest.h>
 
@@ -114,7 +114,8 @@ TEST(DwellTopic, OfflineFitIgnoresItAsAnyOtherTopic) {
   write_run(dir.file("plain.bag"), false);
   write_run(dir.file("with_dwells.bag"), true);
   std::string err_plain, err_dwells;
-  ASSERT_EQ(run(dir.file("plain.bag"), dir.file("plain.csv"), dir.file("plain.json"), &err_plain), 0)
+  ASSERT_EQ(run(dir.file("plain.bag"), dir.file("plain.csv"), dir.file("plain.json"), &err_plain),
+            0)
       << err_plain;
   ASSERT_EQ(run(dir.file("with_dwells.bag"), dir.file("dwells.csv"), dir.file("dwells.json"),
                 &err_dwells),
