@@ -1,6 +1,7 @@
 // calibration/dwell (accel_intrinsics/Dwell, docs/design.md section 17): a row of the position
-// table as the message says it, and offline_fit reading a bag that holds the topic beside the run (as
-// record.launch records it) exactly as the same bag without it: the topic is ignored as any other.
+// table as the message says it, and offline_fit reading a bag that holds the topic beside the
+// run (as record.launch records it) exactly as the same bag without it: the topic is ignored as
+// any other.
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
