@@ -19,6 +19,7 @@ ISSUE15 = "issue 15"
 ISSUE22 = "issue 22"
 ISSUE26 = "issue 26"
 ISSUE33 = "issue 33"
+ISSUE36 = "issue 36"
 SET_HERE = "set here"
 
 
@@ -65,6 +66,9 @@ def main(argv):
     rows = [
         ("calibration node at 10 kHz, bursts of 5 (dwell 1.5 s)", lambda: f("node_load_dwell_1.5s_cpu"), "<", 10.0, pct, SET_HERE),
         ("calibration node at 10 kHz, one message per 100 µs", lambda: f("node_load_dwell_1.5s_paced_cpu"), "<", 10.0, pct, SET_HERE),
+        ("calibration node at 10 kHz, bursts of 5 (dwell 1.5 s), the dashboard attached", lambda: f("node_load_dwell_1.5s_dashboard_cpu"), None, None, pct, ""),
+        ("calibration node at 10 kHz: CPU added by the dashboard attached (with minus without)", lambda: f("node_load_dwell_1.5s_dashboard_cpu") - f("node_load_dwell_1.5s_cpu"), "<=", 0.5, lambda v: "%+.2f points" % v, ISSUE36),
+        ("the dashboard itself (Python, one WebSocket client), beside the node at 10 kHz", lambda: f("node_load_dwell_1.5s_dashboard_dashboard_process_cpu"), None, None, pct, ""),
         ("calibration node at 10 kHz, dwells of 10 s / 60 s (worst)", lambda: fmax("node_load_dwell_10s_cpu", "node_load_dwell_60s_cpu"), "<", 10.0, pct, SET_HERE),
         ("calibration node, late drops at 10 kHz (all runs)", lambda: sum(v for k, (v, _) in figures.items() if k.startswith("node_load_") and k.endswith("_dropped_late")) if any(k.endswith("_dropped_late") for k in figures) else f("node_load_dwell_1.5s_dropped_late"), "<=", 0, lambda v: "%.0f" % v, SET_HERE),
         ("calibration node memory growth, dwells of 1.5 / 10 / 60 s (flat)", lambda: fmax("node_load_dwell_1.5s_rss_growth", "node_load_dwell_10s_rss_growth", "node_load_dwell_60s_rss_growth"), "<=", 1024, kb, ISSUE15 + " (flat; 1 MB set here)"),

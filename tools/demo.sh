@@ -41,6 +41,11 @@ pids+=($!)
 roslaunch accel_intrinsics record.launch bag:="$demo_dir/run.bag" output:=log > "$demo_dir/record.log" 2>&1 &
 record_pid=$!
 pids+=($record_pid)
+# The lab's dashboard beside it (docs/dashboard.md): open the address in a browser on this PC.
+dashboard_port="${DASHBOARD_PORT:-8765}"
+roslaunch accel_intrinsics dashboard.launch port:="$dashboard_port" output:=log > "$demo_dir/dashboard.log" 2>&1 &
+pids+=($!)
+echo "[demo] the dashboard: http://127.0.0.1:$dashboard_port/ (live while the demo runs)"
 sleep 3
 
 echo "[demo] supervise: start the protocol, follow it, fetch the intrinsics"

@@ -13,6 +13,7 @@ PACKAGES=(
   libnodeletlib-dev libnodeletlib-tools pluginlib-dev
   poppler-utils mkdocs
   python3-sqlalchemy python3-alembic python3-psycopg2 python3-pytest postgresql
+  python3-tornado chromium chromium-driver python3-selenium
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -19,6 +19,7 @@
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/channel_messages.h"
 #include "accel_intrinsics/ros/conversions.h"
+#include "accel_intrinsics/ros/dwell_message.h"
 #include "accel_intrinsics/ros/names.h"
 #include "accel_intrinsics/ros/params.h"
 #include "accel_intrinsics/ros/scripts.h"
@@ -50,6 +51,7 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
   status_pub_ =
       nh_.advertise<diagnostic_msgs::DiagnosticStatus>(names::kCalibrationStatusTopic, 1, true);
   analysis_pub_ = nh_.advertise<std_msgs::String>(names::kAnalysisTopic, 1, true);
+  dwell_pub_ = advertise_dwells(nh_);
   get_srv_ =
       nh_.advertiseService(names::kGetIntrinsicsService, &CalibrationNode::on_get_intrinsics, this);
   reset_srv_ = nh_.advertiseService(names::kResetService, &CalibrationNode::on_reset, this);
@@ -256,6 +258,15 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
           ensure_run_directory();
           files_.append_row(a.row);
           ROS_INFO("calibration: %s", a.text.c_str());
+          // Its row number: the table holds it and the rows of the later DwellAccepted here.
+          if (dwell_pub_) {
+            const std::size_t rows = run_.table().rows.size();
+            const std::size_t later = static_cast<std::size_t>(std::count_if(
+                &a + 1, actions.data() + actions.size(),
+                [](const core::RunAction& b) { return b.kind == Kind::DwellAccepted; }));
+            dwell_pub_.publish(to_dwell_msg(a.row, rows > later ? rows - later - 1 : 0,
+                                            options_.frame_id));
+          }
           break;
         case Kind::CheckpointState:
           ensure_run_directory();

@@ -6,6 +6,7 @@
 
 #include "accel_intrinsics/io/tumble_progress.h"
 #include "accel_intrinsics/ros/conversions.h"
+#include "accel_intrinsics/ros/dwell_message.h"
 #include "accel_intrinsics/ros/names.h"
 #include "accel_intrinsics/ros/params.h"
 #include "accel_intrinsics/ros/result_files.h"
@@ -41,6 +42,7 @@ TumbleCalibrationNode::TumbleCalibrationNode(ros::NodeHandle nh, ros::NodeHandle
       session_(options.session) {
   progress_pub_ = nh_.advertise<std_msgs::String>(kTumbleProgressTopic, 1, true);
   result_pub_ = nh_.advertise<IntrinsicResult>(names::kResultTopic, 1, true);
+  dwell_pub_ = advertise_dwells(nh_);
   get_srv_ = nh_.advertiseService(names::kGetIntrinsicsService,
                                   &TumbleCalibrationNode::on_get_intrinsics, this);
   reset_srv_ = nh_.advertiseService(names::kResetService, &TumbleCalibrationNode::on_reset, this);
@@ -63,6 +65,10 @@ void TumbleCalibrationNode::handle_imu(const sensor_msgs::Imu& msg) {
   if (!session_.add_sample(sample.stamp_s, sample.outputs)) return;
   const core::TumbleProgress& p = session_.progress();
   ROS_INFO("calibration: %s", p.message.c_str());
+  const std::vector<core::DwellRecord>& rests = session_.table().rows;
+  for (; rests_published_ < rests.size(); ++rests_published_)
+    dwell_pub_.publish(to_dwell_msg(rests[rests_published_], rests_published_,
+                                    options_.common.frame_id));
   publish_progress();
   if (p.target_reached && !target_fitted_) {
     std::string message;
@@ -159,6 +165,7 @@ bool TumbleCalibrationNode::on_reset(std_srvs::Trigger::Request&, std_srvs::Trig
   const std::size_t rests = session_.table().rows.size();
   session_.reset();
   new_run_pending_ = true;  // the next result goes into a new run directory
+  rests_published_ = 0;
   have_result_ = false;
   target_fitted_ = false;
   publish_progress();

@@ -32,6 +32,9 @@ NODE_SOURCES = {
                           "src/nodelets/apply_calibration_nodelet.cpp"],
     "sim_clock": ["src/ros/sim_clock.cpp", "src/nodes/sim_clock.cpp"],
 }
+# Python nodes: their private parameters are the literal `rospy.get_param("~name"` calls.
+PY_NODE_SOURCES = {"dashboard": ["scripts/dashboard"]}
+_PY_PARAM = re.compile(r"rospy\.get_param\(\s*\"~([\w/]+)\"")
 # Files with readers only (no parameter of their own), searched but owned by no node.
 HELPER_SOURCES = ["src/ros/params.cpp"]
 # Where parameters may be read.
@@ -131,6 +134,13 @@ def parameters_read(package=PACKAGE, extra_sources=None):
             continue
         for name, line in found:
             nodes[owner[path]].setdefault(name, "%s:%d" % (path, line))
+    for node, files in PY_NODE_SOURCES.items():
+        nodes[node] = {}
+        for path in files:
+            text = read(path)
+            for m in _PY_PARAM.finditer(text):
+                line = text.count("\n", 0, m.start()) + 1
+                nodes[node].setdefault(m.group(1), "%s:%d" % (path, line))
     return nodes, problems
 
 

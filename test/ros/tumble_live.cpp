@@ -15,10 +15,12 @@
 #include <optional>
 #include <yaml-cpp/yaml.h>
 
+#include "accel_intrinsics/Dwell.h"
 #include "accel_intrinsics/GetIntrinsics.h"
 #include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/dwells/rest_detection.h"
 #include "accel_intrinsics/core/dwells/samples_file.h"
 #include "run_dirs.h"
@@ -49,6 +51,14 @@ TEST(TumbleLive, ReplayedSessionGivesRestsProgressAndTheFit) {
 
   ProgressLog log;
   ros::Subscriber sub = nh.subscribe("calibration/tumble_progress", 100, &ProgressLog::on, &log);
+  // calibration/dwell: one message per rest found (docs/design.md section 17).
+  std::mutex dwell_mutex;
+  std::vector<Dwell> dwells;
+  ros::Subscriber dwell_sub = nh.subscribe<Dwell>(
+      "calibration/dwell", 1000, [&](const Dwell::ConstPtr& m) {
+        std::lock_guard<std::mutex> lock(dwell_mutex);
+        dwells.push_back(*m);
+      });
   ros::Publisher pub = nh.advertise<sensor_msgs::Imu>("imu/data_raw", 20000);
   ros::AsyncSpinner spinner(1);
   spinner.start();
@@ -140,6 +150,20 @@ TEST(TumbleLive, ReplayedSessionGivesRestsProgressAndTheFit) {
   std::string output_dir;
   ASSERT_TRUE(nh.getParam("calibration/output_dir", output_dir));
   EXPECT_TRUE(std::filesystem::exists(run_dirs::latest(output_dir) + "/intrinsics.yaml")) << output_dir;
+  {
+    // Each rest of the table the node wrote beside the result came as a calibration/dwell.
+    const core::PositionTable rests =
+        core::read_position_table_file(run_dirs::latest(output_dir) + "/position_table.csv");
+    std::lock_guard<std::mutex> lock(dwell_mutex);
+    ASSERT_EQ(dwells.size(), rests.rows.size());
+    EXPECT_EQ(dwells.size(), live_rests);
+    for (std::size_t i = 0; i < dwells.size(); ++i) {
+      EXPECT_EQ(dwells[i].index, i);
+      EXPECT_EQ(dwells[i].phase, Dwell::PHASE_UNKNOWN);
+      EXPECT_EQ(dwells[i].n, rests.rows[i].n) << i;
+      for (int k = 0; k < 3; ++k) EXPECT_DOUBLE_EQ(dwells[i].mean[k], rests.rows[i].mean(k)) << i;
+    }
+  }
   // The live session kept its first rest's raw samples and weighed the fit with their noise
   // model as offline_fit does: the rest the same (live and batch rests start alike to a sample),
   // the model not white, fitted again to the tumble.

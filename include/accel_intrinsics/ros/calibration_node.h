@@ -169,6 +169,7 @@ class CalibrationNode {
   ros::Subscriber command_sub_, imu_sub_, progress_sub_;
   std::vector<ros::Subscriber> channel_subs_;  // one per core::kChannels row
   ros::Publisher result_pub_, status_pub_, analysis_pub_;
+  ros::Publisher dwell_pub_;  // calibration/dwell: each accepted row (ros/dwell_message.h)
   ros::ServiceServer get_srv_, reset_srv_, analyze_srv_;
   ros::Timer timer_;
   ros::WallTimer wall_timer_;

@@ -59,6 +59,8 @@ class TumbleCalibrationNode {
   IntrinsicResult result_;
   ros::Subscriber imu_sub_;
   ros::Publisher progress_pub_, result_pub_;
+  ros::Publisher dwell_pub_;        // calibration/dwell: each rest found
+  std::size_t rests_published_ = 0;  // rows of session_.table() published on it
   ros::ServiceServer get_srv_, reset_srv_;
   ros::WallTimer progress_timer_;
 };
