@@ -297,7 +297,11 @@ void LongRestRecorder::clear() {
 std::optional<NoiseModel> LongRestRecorder::noise_model(const PositionTable& table,
                                                         double initial_rest_s) const {
   const std::optional<LongRest> span = find_long_rest(table, initial_rest_s);
-  if (!span || stage_ != Stage::After || span->t_start_s != start_s_ || span->t_end_s != end_s_)
+  // The rest's samples are all here when the recorded span [start_s_, end_s_] covers the rest's
+  // row and what was accumulated lies inside it (a tumble's row ends just before its MOVING).
+  if (!span || stage_ != Stage::After || rest_.samples() == 0 || start_s_ > span->t_start_s ||
+      end_s_ < span->t_end_s || rest_.first_stamp_s() < span->t_start_s ||
+      rest_.last_stamp_s() > span->t_end_s)
     return std::nullopt;
   return noise_model_of_rest(rest_, *span);
 }

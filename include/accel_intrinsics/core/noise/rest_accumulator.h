@@ -135,7 +135,8 @@ class LongRestRecorder {
   std::size_t samples() const { return rest_.samples(); }
   const RestAccumulator& rest() const { return rest_; }
   // The noise model of the run's long rest (find_long_rest(table, initial_rest_s)) when it is
-  // the first dwell this recorder saw whole; nothing otherwise. Throws as
+  // the first dwell this recorder saw whole (its span covers the rest's row and every sample
+  // accumulated lies in the row); nothing otherwise. Throws as
   // RestAccumulator::noise_model.
   std::optional<NoiseModel> noise_model(const PositionTable& table, double initial_rest_s) const;
 
