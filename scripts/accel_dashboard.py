@@ -10,7 +10,7 @@ namespace and hands every change to its listener as a JSON-ready event for the b
   {"type": "dwell", "ns": ns, "dwell": {...}, "fits": {...}, "rows": n}
   {"type": "archive", "archive": {...}}             the lab archive's view (with ~archive)
 
-The fitted curve of the plot is the seed's equation (4) per phase and accelerometer,
+The fitted curve of the plot is equation (4) of docs/design.md per phase and accelerometer,
 R(a) = c0 + c_sin sin a + c_cos cos a, fitted by unweighted least squares to the dwells of that
 phase so far (fit_eq4): the dashboard's own picture of the data, refitted at every dwell; the
 numbers of the result come from the calibration node, never from this fit.
