@@ -52,13 +52,20 @@ int main(int argc, char** argv) {
   double rate_hz = 10000.0, seconds = 20.0, pace_s = 0.0005;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
-    if (key == "--pid") pid = std::atoi(argv[i + 1]);
-    else if (key == "--nodelet") nodelet_file = argv[i + 1];
-    else if (key == "--immediate") immediate = std::atoi(argv[i + 1]);
-    else if (key == "--rate") rate_hz = std::atof(argv[i + 1]);
-    else if (key == "--seconds") seconds = std::atof(argv[i + 1]);
-    else if (key == "--pace") pace_s = std::atof(argv[i + 1]);
-    else return usage();
+    if (key == "--pid")
+      pid = std::atoi(argv[i + 1]);
+    else if (key == "--nodelet")
+      nodelet_file = argv[i + 1];
+    else if (key == "--immediate")
+      immediate = std::atoi(argv[i + 1]);
+    else if (key == "--rate")
+      rate_hz = std::atof(argv[i + 1]);
+    else if (key == "--seconds")
+      seconds = std::atof(argv[i + 1]);
+    else if (key == "--pace")
+      pace_s = std::atof(argv[i + 1]);
+    else
+      return usage();
   }
   const bool in_process = !nodelet_file.empty();
   if ((pid <= 0) == !in_process || rate_hz <= 0 || seconds <= 0 || pace_s < 0) return usage();
@@ -74,13 +81,14 @@ int main(int argc, char** argv) {
     remappings[ros::names::resolve(name + "/imu/data_calibrated")] =
         ros::names::resolve("imu/data_calibrated");
     if (!loader->load(name, "accel_intrinsics/ApplyCalibrationNodelet", remappings, {})) {
-      std::fprintf(stderr, "apply_calibration_load: cannot load accel_intrinsics/ApplyCalibrationNodelet\n");
+      std::fprintf(
+          stderr, "apply_calibration_load: cannot load accel_intrinsics/ApplyCalibrationNodelet\n");
       return 1;
     }
   }
   ros::Publisher imu = nh.advertise<sensor_msgs::Imu>("imu/data_raw", 20000);
-  ros::Subscriber sub = nh.subscribe("imu/data_calibrated", 20000, on_calibrated,
-                                     ros::TransportHints().tcpNoDelay());
+  ros::Subscriber sub =
+      nh.subscribe("imu/data_calibrated", 20000, on_calibrated, ros::TransportHints().tcpNoDelay());
   ros::AsyncSpinner spinner(1);
   spinner.start();
   const ros::WallTime wait_until = ros::WallTime::now() + ros::WallDuration(10.0);
@@ -140,12 +148,14 @@ int main(int argc, char** argv) {
   const double cpu = cpu_now() - cpu0;
   const double process_cpu = bench::cpu_seconds(measured_pid) - process_cpu0;
   std::printf("sent %llu IMU messages in %.2f s (%.0f msgs/s), %llu came back calibrated\n",
-              static_cast<unsigned long long>(sent), send_wall, static_cast<double>(sent) / send_wall,
+              static_cast<unsigned long long>(sent), send_wall,
+              static_cast<double>(sent) / send_wall,
               static_cast<unsigned long long>(received.load() - received0));
   if (in_process) {
-    std::printf("apply_calibration nodelet (in process, pointers): CPU %.1f %% of one core "
-                "(whole process with publisher and subscriber: %.1f %%)\n",
-                100.0 * cpu / wall, 100.0 * process_cpu / wall);
+    std::printf(
+        "apply_calibration nodelet (in process, pointers): CPU %.1f %% of one core "
+        "(whole process with publisher and subscriber: %.1f %%)\n",
+        100.0 * cpu / wall, 100.0 * process_cpu / wall);
   } else {
     std::printf("apply_calibration (pid %d): CPU %.1f %% of one core\n", pid, 100.0 * cpu / wall);
   }

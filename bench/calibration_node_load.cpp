@@ -78,7 +78,8 @@ int main(int argc, char** argv) {
     loader.reset(new nodelet::Loader(false));
     // Its public topics are in its namespace, this node's: imu/data_raw, gimbal/command, ...
     if (!loader->load(name, "accel_intrinsics/CalibrationNodelet", ros::M_string(), {})) {
-      std::fprintf(stderr, "calibration_node_load: cannot load accel_intrinsics/CalibrationNodelet\n");
+      std::fprintf(stderr,
+                   "calibration_node_load: cannot load accel_intrinsics/CalibrationNodelet\n");
       return 1;
     }
   }
@@ -157,8 +158,8 @@ int main(int argc, char** argv) {
   std::printf("sent %llu IMU messages in %.2f s (%.0f msgs/s) and %u dwells\n",
               static_cast<unsigned long long>(sent), wall, static_cast<double>(sent) / wall, step);
   std::printf("calibration %s (pid %d): CPU %.1f %% of one core; RSS %ld kB -> %ld kB\n",
-              nodelet ? "nodelet (in process, pointers)" : "node", pid,
-              100.0 * cpu / (wall + 1.5), rss0, rss1);
+              nodelet ? "nodelet (in process, pointers)" : "node", pid, 100.0 * cpu / (wall + 1.5),
+              rss0, rss1);
   // In process, the publisher's thread also does roscpp's hand-off of each message (what the
   // driver's thread would do): the whole process shows whether work only moved between threads.
   if (nodelet) {
@@ -173,8 +174,9 @@ int main(int argc, char** argv) {
       status["dropped_late"].c_str(), status["dwells_x"].c_str());
   // Every sample the node took in is in one of its counters (used, or dropped for a reason).
   unsigned long long received = 0;
-  for (const char* key : {"samples_used", "dropped_outside_dwell", "dropped_settle_discard",
-                          "dropped_non_finite", "dropped_backwards", "duplicates", "dropped_late"}) {
+  for (const char* key :
+       {"samples_used", "dropped_outside_dwell", "dropped_settle_discard", "dropped_non_finite",
+        "dropped_backwards", "duplicates", "dropped_late"}) {
     received += std::strtoull(status[key].c_str(), nullptr, 10);
   }
   std::printf("received %llu of %llu IMU messages sent\n", received,

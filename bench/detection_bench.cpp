@@ -9,7 +9,8 @@
 //   value_90 = sqrt(lambda_90) * sigma_c,  P(chi2_1(lambda_90) > c) = 0.9
 // with c either the family-wise critical value of max-T across all candidates at the analysis'
 // alpha (2.5 %), from the theory's own draws: the best any test with the same false-alarm
-// guarantee can do) or the single-test value 3.84 (an oracle that knows in advance which effect to look for).
+// guarantee can do) or the single-test value 3.84 (an oracle that knows in advance which effect to
+// look for).
 //
 // Usage: detection_bench [--runs R] [--example DIR]
 //   --runs R       Monte Carlo runs per amplitude (default 200)
@@ -25,12 +26,12 @@
 #include <string>
 #include <vector>
 
+#include "../test/support/detection_theory.h"
 #include "accel_intrinsics/core/analysis/discrepancy.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/analysis_report.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/residuals_csv.h"
-#include "../test/support/detection_theory.h"
 
 using namespace accel_intrinsics::core;
 
@@ -61,9 +62,9 @@ struct Theory {
 
 Theory theory_for(const SimulationOptions& base, const Effect& e) {
   // Independent of analyze() (test/support/detection_theory.h, shared with
-  // test/core/analysis/detection_theory_test.cpp): the Fisher information of the effect term with S and O
-  // projected out and the simulator's known noise, the family-wise max-T critical value of the
-  // analysis' candidate family from the theory's own Monte Carlo draws at the analysis' alpha.
+  // test/core/analysis/detection_theory_test.cpp): the Fisher information of the effect term with S
+  // and O projected out and the simulator's known noise, the family-wise max-T critical value of
+  // the analysis' candidate family from the theory's own Monte Carlo draws at the analysis' alpha.
   namespace dt = accel_intrinsics::detection_theory;
   SimulationOptions clean = base;
   clean.noise_density = 0.0;  // the timeline and sample counts only

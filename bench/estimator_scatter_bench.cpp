@@ -6,7 +6,8 @@
 //                                   over the Cramer-Rao bound (Fisher information of the dwell
 //                                   means with the true noise, propagated to the intrinsics)
 //   reported_std_over_scatter_<q>   mean reported standard uncertainty over that scatter
-//   eq4_scatter_over_crb_<q>        the same ratio for the eq4 fit (docs/design.md section 1) (>= 1: less efficient)
+//   eq4_scatter_over_crb_<q>        the same ratio for the eq4 fit (docs/design.md section 1) (>=
+//   1: less efficient)
 // as `name: value unit` lines. Ratios of 1 mean an efficient estimator and honest uncertainties;
 // the Monte Carlo resolution of each ratio (1 / sqrt(2 (M - 1))) is printed too.
 // Core library only (no ROS).
@@ -47,7 +48,8 @@ Vector6d cramer_rao_std(const core::SimulationOptions& sim, const core::Position
   const double sigma = core::sample_noise_std(sim);
   Eigen::Matrix4d F = Eigen::Matrix4d::Zero();  // the same for u, v, w (same noise)
   for (const core::DwellRecord& row : table.rows) {
-    const Eigen::Vector3d f = core::in_plane_direction(row.phase, row.angle_rad) * sim.local_gravity;
+    const Eigen::Vector3d f =
+        core::in_plane_direction(row.phase, row.angle_rad) * sim.local_gravity;
     const Eigen::Vector4d h(f(0), f(1), f(2), 1.0);
     F += h * h.transpose() * (static_cast<double>(row.n) / (sigma * sigma));
   }

@@ -47,7 +47,9 @@ void run(benchmark::State& state, const FitOptions& options, bool with_effect) {
   state.counters["dwells"] = static_cast<double>(table.rows.size());
 }
 
-void BM_FitJoint(benchmark::State& state) { run(state, FitOptions(), false); }
+void BM_FitJoint(benchmark::State& state) {
+  run(state, FitOptions(), false);
+}
 
 void BM_FitEq4(benchmark::State& state) {
   FitOptions options;

@@ -122,7 +122,9 @@ double run_length(const core::SimulationOptions& sim, double dwell_s) {
 // at `rate_hz` (fewer would cut the run short of DONE: not a run offline_fit can fit).
 constexpr double kMinDwellS = 0.5;
 std::uint64_t min_messages(double rate_hz) {
-  return static_cast<std::uint64_t>(std::ceil(run_length(bench_simulation(rate_hz), kMinDwellS) * rate_hz)) + 1;
+  return static_cast<std::uint64_t>(
+             std::ceil(run_length(bench_simulation(rate_hz), kMinDwellS) * rate_hz)) +
+         1;
 }
 
 // The 24-position protocol at an IMU rate of `rate_hz`, with the dwell time that makes the run
@@ -132,7 +134,8 @@ void write_bag(const std::string& path, std::uint64_t messages, double rate_hz) 
   core::SimulationOptions sim = bench_simulation(rate_hz);
   const double target_s = static_cast<double>(messages - 1) / rate_hz;
   const double per_second_of_dwell = run_length(sim, 2.0) - run_length(sim, 1.0);
-  sim.protocol.dwell_s = std::max(kMinDwellS, 1.0 + (target_s - run_length(sim, 1.0)) / per_second_of_dwell);
+  sim.protocol.dwell_s =
+      std::max(kMinDwellS, 1.0 + (target_s - run_length(sim, 1.0)) / per_second_of_dwell);
   core::Recording rec = core::simulate_recording(sim);
   if (rec.samples.size() > messages && !rec.commands.empty() &&
       rec.samples[messages - 1].stamp_s < rec.commands.back().stamp_s) {
@@ -173,7 +176,8 @@ void line(const std::string& name, double value, const std::string& unit) {
 
 // ---- in process (Google Benchmark) ---------------------------------------------------------
 
-// bag_input as offline_fit uses it: memory-mapped chunk scan (or View when allow_chunk_scan is off).
+// bag_input as offline_fit uses it: memory-mapped chunk scan (or View when allow_chunk_scan is
+// off).
 void read_bag_benchmark(benchmark::State& state, bool allow_chunk_scan) {
   ai::BagInputOptions options;
   options.allow_chunk_scan = allow_chunk_scan;
@@ -183,18 +187,23 @@ void read_bag_benchmark(benchmark::State& state, bool allow_chunk_scan) {
     messages = run.stats.imu_messages + run.stats.command_messages;
     benchmark::DoNotOptimize(run.table.rows.data());
   }
-  state.counters["msgs_per_s"] =
-      benchmark::Counter(static_cast<double>(messages), benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["msgs_per_s"] = benchmark::Counter(static_cast<double>(messages),
+                                                    benchmark::Counter::kIsIterationInvariantRate);
 }
-void BM_ReadBag_ChunkScan(benchmark::State& state) { read_bag_benchmark(state, true); }
-void BM_ReadBag_RosbagView(benchmark::State& state) { read_bag_benchmark(state, false); }
+void BM_ReadBag_ChunkScan(benchmark::State& state) {
+  read_bag_benchmark(state, true);
+}
+void BM_ReadBag_RosbagView(benchmark::State& state) {
+  read_bag_benchmark(state, false);
+}
 
 // The plain way: rosbag::View and instantiate<sensor_msgs::Imu>, same dwell assembly.
 void BM_ReadBag_RosbagViewFullImuMessage(benchmark::State& state) {
   std::uint64_t messages = 0;
   for (auto _ : state) {
     rosbag::Bag bag(g_bag, rosbag::bagmode::Read);
-    rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{"/imu/data_raw", "/gimbal/command"}));
+    rosbag::View view(
+        bag, rosbag::TopicQuery(std::vector<std::string>{"/imu/data_raw", "/gimbal/command"}));
     core::DwellAssembler assembler(ai::BagInputOptions::default_assembler_options());
     messages = 0;
     for (const rosbag::MessageInstance& m : view) {
@@ -208,13 +217,16 @@ void BM_ReadBag_RosbagViewFullImuMessage(benchmark::State& state) {
     assembler.flush();
     benchmark::DoNotOptimize(assembler.table().rows.data());
   }
-  state.counters["msgs_per_s"] =
-      benchmark::Counter(static_cast<double>(messages), benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["msgs_per_s"] = benchmark::Counter(static_cast<double>(messages),
+                                                    benchmark::Counter::kIsIterationInvariantRate);
 }
 
 BENCHMARK(BM_ReadBag_ChunkScan)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
 BENCHMARK(BM_ReadBag_RosbagView)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
-BENCHMARK(BM_ReadBag_RosbagViewFullImuMessage)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+BENCHMARK(BM_ReadBag_RosbagViewFullImuMessage)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(3);
 
 }  // namespace
 
@@ -226,12 +238,18 @@ int main(int argc, char** argv) {
   std::vector<char*> rest{argv[0]};
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--bag" && i + 1 < argc) g_bag = argv[++i];
-    else if (a == "--messages" && i + 1 < argc) messages = std::strtoull(argv[++i], nullptr, 10);
-    else if (a == "--rate-hz" && i + 1 < argc) rate_hz = std::atof(argv[++i]);
-    else if (a == "--runs" && i + 1 < argc) runs = std::max(1, std::atoi(argv[++i]));
-    else if (a == "--no-python") python = false;
-    else rest.push_back(argv[i]);
+    if (a == "--bag" && i + 1 < argc)
+      g_bag = argv[++i];
+    else if (a == "--messages" && i + 1 < argc)
+      messages = std::strtoull(argv[++i], nullptr, 10);
+    else if (a == "--rate-hz" && i + 1 < argc)
+      rate_hz = std::atof(argv[++i]);
+    else if (a == "--runs" && i + 1 < argc)
+      runs = std::max(1, std::atoi(argv[++i]));
+    else if (a == "--no-python")
+      python = false;
+    else
+      rest.push_back(argv[i]);
   }
 
   if (!(rate_hz > 0.0) || !std::isfinite(rate_hz)) {
@@ -243,7 +261,8 @@ int main(int argc, char** argv) {
   const std::uint64_t fewest = min_messages(rate_hz);
   if (messages < fewest) {
     std::fprintf(stderr,
-                 "offline_bench: --messages %llu is too small for a full protocol at %g Hz (24 positions with "
+                 "offline_bench: --messages %llu is too small for a full protocol at %g Hz (24 "
+                 "positions with "
                  "%.1f s dwells need at least %llu IMU messages); use --messages %llu or more\n",
                  static_cast<unsigned long long>(messages), rate_hz, kMinDwellS,
                  static_cast<unsigned long long>(fewest), static_cast<unsigned long long>(fewest));
@@ -252,7 +271,8 @@ int main(int argc, char** argv) {
 
   BagInfo info = inspect(g_bag);
   const double expected_duration = static_cast<double>(messages - 1) / rate_hz;
-  if (info.imu != messages || std::abs(info.duration_s - expected_duration) > 0.01 * expected_duration) {
+  if (info.imu != messages ||
+      std::abs(info.duration_s - expected_duration) > 0.01 * expected_duration) {
     std::fprintf(stderr, "offline_bench: writing %s (%llu IMU messages)...\n", g_bag.c_str(),
                  static_cast<unsigned long long>(messages));
     const auto t0 = Clock::now();

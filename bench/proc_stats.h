@@ -30,14 +30,18 @@ inline double stat_cpu_seconds(const std::string& stat_path) {
 }
 
 // CPU seconds of process `pid`, all its threads.
-inline double cpu_seconds(int pid) { return stat_cpu_seconds("/proc/" + std::to_string(pid) + "/stat"); }
+inline double cpu_seconds(int pid) {
+  return stat_cpu_seconds("/proc/" + std::to_string(pid) + "/stat");
+}
 
 // CPU seconds of thread `tid` of this process.
 inline double thread_cpu_seconds(long tid) {
   return stat_cpu_seconds("/proc/self/task/" + std::to_string(tid) + "/stat");
 }
 
-inline long current_thread_id() { return static_cast<long>(syscall(SYS_gettid)); }
+inline long current_thread_id() {
+  return static_cast<long>(syscall(SYS_gettid));
+}
 
 // VmRSS of process `pid` in kB; -1 when it cannot be read.
 inline long rss_kb(int pid) {

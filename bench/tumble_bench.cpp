@@ -8,9 +8,9 @@
 
 #include <string>
 
-#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/dwells/rest_detection.h"
 #include "accel_intrinsics/core/dwells/samples_file.h"
+#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/fit/tumble.h"
 #include "accel_intrinsics/core/simulation/tumble_simulator.h"
 

@@ -18,9 +18,9 @@
 #include <cstdint>
 #include <map>
 
+#include "accel_intrinsics/core/analysis/uncertainty_budget.h"
 #include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
-#include "accel_intrinsics/core/analysis/uncertainty_budget.h"
 
 namespace {
 

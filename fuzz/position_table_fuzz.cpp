@@ -1,5 +1,5 @@
-// libFuzzer target for the position-table CSV reader (docs/design.md section 2): arbitrary bytes must
-// either be rejected with PositionTableError or parse into a table that survives a write/read
+// libFuzzer target for the position-table CSV reader (docs/design.md section 2): arbitrary bytes
+// must either be rejected with PositionTableError or parse into a table that survives a write/read
 // round trip unchanged. Built and run by tools/fuzz.sh.
 #include <cmath>
 #include <cstdint>
@@ -21,8 +21,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   for (const core::DwellRecord& row : table.rows) {
     // The reader promises finite values, n > 0, std >= 0 and t_end >= t_start.
-    if (!row.mean.allFinite() || !row.std.allFinite() || !std::isfinite(row.angle_rad) || row.n == 0 ||
-        row.t_end_s < row.t_start_s || (row.std.array() < 0.0).any()) {
+    if (!row.mean.allFinite() || !row.std.allFinite() || !std::isfinite(row.angle_rad) ||
+        row.n == 0 || row.t_end_s < row.t_start_s || (row.std.array() < 0.0).any()) {
       std::abort();
     }
   }
@@ -36,7 +36,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const auto& a = table.rows[i];
     const auto& b = back.rows[i];
     if (a.phase != b.phase || a.step != b.step || a.n != b.n || a.angle_rad != b.angle_rad ||
-        a.t_start_s != b.t_start_s || a.t_end_s != b.t_end_s || a.mean != b.mean || a.std != b.std) {
+        a.t_start_s != b.t_start_s || a.t_end_s != b.t_end_s || a.mean != b.mean ||
+        a.std != b.std) {
       std::abort();
     }
   }

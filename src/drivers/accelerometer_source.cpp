@@ -48,7 +48,8 @@ void SimulatedAccelerometerOptions::validate() const {
   } catch (const std::invalid_argument& e) {
     std::string what = e.what();
     const std::string prefix = "simulation: temperature ";
-    if (what.compare(0, prefix.size(), prefix) == 0) what = "temperature/" + what.substr(prefix.size());
+    if (what.compare(0, prefix.size(), prefix) == 0)
+      what = "temperature/" + what.substr(prefix.size());
     throw std::invalid_argument(what);
   }
 }
@@ -162,7 +163,8 @@ void SimulatedAccelerometer::poll_temperatures(double now_s,
     ++next_temperature_index_;
     const double since_t0 = std::isfinite(time_origin_s_) ? t - time_origin_s_ : 0.0;
     out->push_back(core::TemperatureSample{
-        t + lag_s_, temperature_c(since_t0) + options_.temperature.noise_c * normal(temperature_rng_)});
+        t + lag_s_,
+        temperature_c(since_t0) + options_.temperature.noise_c * normal(temperature_rng_)});
   }
 }
 

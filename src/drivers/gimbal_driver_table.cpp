@@ -175,7 +175,8 @@ const GimbalDriverRow* find_gimbal_driver(const std::string& name) {
 
 std::string gimbal_driver_names() {
   std::string out;
-  for (const GimbalDriverRow& row : gimbal_driver_table()) out += (out.empty() ? "" : ", ") + row.name;
+  for (const GimbalDriverRow& row : gimbal_driver_table())
+    out += (out.empty() ? "" : ", ") + row.name;
   return out;
 }
 

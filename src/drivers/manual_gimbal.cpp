@@ -63,8 +63,7 @@ PoseMatch nearest_pose(const Eigen::Vector3d& direction, core::Phase prefer) {
 }
 
 void ManualGimbalOptions::validate() const {
-  if (!(std::isfinite(pose_tolerance_deg) && pose_tolerance_deg > 0.0 &&
-        pose_tolerance_deg < 90.0))
+  if (!(std::isfinite(pose_tolerance_deg) && pose_tolerance_deg > 0.0 && pose_tolerance_deg < 90.0))
     throw std::invalid_argument("pose_tolerance_deg must be in (0, 90) deg");
   if (!(std::isfinite(check_s) && check_s > 0.0))
     throw std::invalid_argument("check_s must be > 0 s");
@@ -115,8 +114,8 @@ void ManualGimbal::update(double t_s) {
     return;
   checking_ = false;
   const Eigen::Vector3d measured = sum_ / static_cast<double>(samples_);
-  const Eigen::Vector3d expected = core::specific_force_in_dut(
-      core::phase_pose(target_.phase, target_.angle_rad), 1.0);
+  const Eigen::Vector3d expected =
+      core::specific_force_in_dut(core::phase_pose(target_.phase, target_.angle_rad), 1.0);
   const double off = angle_between(measured, expected);
   if (measured.norm() > 0.0 && off <= core::deg_to_rad(options_.pose_tolerance_deg)) {
     settled_ = true;
@@ -130,8 +129,8 @@ void ManualGimbal::update(double t_s) {
                     ? " (" + fixed(core::rad_to_deg(seen.off_plane_rad), 1) + " deg off its plane)"
                     : std::string()) +
                ", not " + pose_words(target_.phase, target_.angle_rad) + " (" +
-               fixed(core::rad_to_deg(off), 1) + " deg apart, pose_tolerance_deg = " +
-               fixed(options_.pose_tolerance_deg, 1) + ")";
+               fixed(core::rad_to_deg(off), 1) +
+               " deg apart, pose_tolerance_deg = " + fixed(options_.pose_tolerance_deg, 1) + ")";
   waiting_ = true;
 }
 
@@ -156,7 +155,8 @@ std::string ManualGimbal::operator_request() const {
 }
 
 std::map<std::string, double> ManualGimbal::operator_targets_deg() const {
-  std::map<std::string, double> deg = options_.axis_map.positions_deg(target_.phase, target_.angle_rad);
+  std::map<std::string, double> deg =
+      options_.axis_map.positions_deg(target_.phase, target_.angle_rad);
   // An indexing head reads 0..360.
   for (auto& a : deg) {
     a.second = std::fmod(a.second, 360.0);

@@ -26,9 +26,11 @@ bool positive(double v) {
 
 void RosJointOptions::validate() const {
   if (joint_states_topic.empty()) throw std::invalid_argument("joint_states_topic is empty");
-  if (axes.empty()) throw std::invalid_argument("axes is missing ({X: {joint: NAME, command_topic: TOPIC}, ...})");
+  if (axes.empty())
+    throw std::invalid_argument("axes is missing ({X: {joint: NAME, command_topic: TOPIC}, ...})");
   for (const auto& a : axes) {
-    if (a.second.joint.empty()) throw std::invalid_argument("axes/" + a.first + "/joint is missing");
+    if (a.second.joint.empty())
+      throw std::invalid_argument("axes/" + a.first + "/joint is missing");
     if (a.second.command_topic.empty())
       throw std::invalid_argument("axes/" + a.first + "/command_topic is missing");
   }
@@ -93,7 +95,8 @@ void RosJointGimbal::move_to(const GimbalTarget& target, double t_s) {
 void RosJointGimbal::update(double t_s) {
   if (watch_since_s_ < 0.0) watch_since_s_ = t_s;
   for (const auto& j : joints_) {
-    const double last_s = j.second.seen ? std::max(j.second.seen_s, watch_since_s_) : watch_since_s_;
+    const double last_s =
+        j.second.seen ? std::max(j.second.seen_s, watch_since_s_) : watch_since_s_;
     if (t_s - last_s > options_.joint_state_timeout_s) {
       throw GimbalFault("ros_joint: no JointState for " + describe(j.first) + " on " +
                         options_.joint_states_topic + " for " + fixed(t_s - last_s, 1) +
@@ -128,9 +131,9 @@ void RosJointGimbal::update(double t_s) {
     }
     if (missing.empty()) missing = "the joints did not stay within tolerance for settle_s";
     moving_ = false;
-    throw GimbalFault("ros_joint: " + missing + " within move_timeout_s = " +
-                      fixed(options_.move_timeout_s, 1) + " s (tolerance_deg = " +
-                      fixed(options_.tolerance_deg, 3) + ")");
+    throw GimbalFault("ros_joint: " + missing +
+                      " within move_timeout_s = " + fixed(options_.move_timeout_s, 1) +
+                      " s (tolerance_deg = " + fixed(options_.tolerance_deg, 3) + ")");
   }
 }
 

@@ -443,11 +443,11 @@ void Smc100Emulator::on_line(const std::string& received) {
     } else {
       // Already homing: E; otherwise "not allowed in <state>": CONFIGURATION I, DISABLE J,
       // READY K, MOVING M.
-      c.error = c.state == 0x1E || c.state == 0x1F          ? 'E'
-                : c.state == 0x14                           ? 'I'
-                : c.state >= 0x3C && c.state <= 0x3E        ? 'J'
-                : c.state == 0x28                           ? 'M'
-                                                            : 'K';
+      c.error = c.state == 0x1E || c.state == 0x1F   ? 'E'
+                : c.state == 0x14                    ? 'I'
+                : c.state >= 0x3C && c.state <= 0x3E ? 'J'
+                : c.state == 0x28                    ? 'M'
+                                                     : 'K';
     }
   } else if (command == "RS" && arg.empty()) {
     c.axis.halt(t);

@@ -106,8 +106,8 @@ nlohmann::json noise_model_json(const core::NoiseModel& m) {
   return {{"kind", m.kind()},
           {"source", m.source},
           {"rate_hz", m.rate_hz},
-          {"rest", {{"t_start", m.rest_t_start_s}, {"t_end", m.rest_t_end_s},
-                    {"samples", m.rest_samples}}},
+          {"rest",
+           {{"t_start", m.rest_t_start_s}, {"t_end", m.rest_t_end_s}, {"samples", m.rest_samples}}},
           {"axes", axes}};
 }
 
@@ -116,8 +116,8 @@ nlohmann::json analysis_json(const AnalysisResult& r) {
   // Setup mistakes, tested before any physical effect (core/analysis/setup_mistakes.h).
   nlohmann::json mistakes = nlohmann::json::array();
   for (const core::SetupMistake& m : r.setup_mistakes)
-    mistakes.push_back({{"name", m.name}, {"target", m.target}, {"finding", m.finding},
-                        {"fix", m.fix}});
+    mistakes.push_back(
+        {{"name", m.name}, {"target", m.target}, {"finding", m.finding}, {"fix", m.fix}});
   j["setup_mistakes"] = mistakes;
   nlohmann::json effects = nlohmann::json::array();
   for (const core::NamedEffect& e : r.effects) {
@@ -148,15 +148,14 @@ nlohmann::json analysis_json(const AnalysisResult& r) {
   j["gap"] = {{"before", gap_json(r.before)}, {"after", gap_json(r.after)}};
   j["noise_model"] = noise_model_json(r.noise_model);
   const core::NoiseEntry& cn = r.correlated_noise;
-  j["noise_entries"] = nlohmann::json::array(
-      {{{"name", cn.name},
-        {"named", cn.named},
-        {"noise_model", cn.noise_model},
-        {"white_reduced_chi2", cn.white_reduced_chi2},
-        {"white_p_value", cn.white_p_value},
-        {"model_reduced_chi2", cn.model_reduced_chi2},
-        {"model_p_value", cn.model_p_value},
-        {"reason", cn.reason}}});
+  j["noise_entries"] = nlohmann::json::array({{{"name", cn.name},
+                                               {"named", cn.named},
+                                               {"noise_model", cn.noise_model},
+                                               {"white_reduced_chi2", cn.white_reduced_chi2},
+                                               {"white_p_value", cn.white_p_value},
+                                               {"model_reduced_chi2", cn.model_reduced_chi2},
+                                               {"model_p_value", cn.model_p_value},
+                                               {"reason", cn.reason}}});
   j["model_before"] = r.before_fit.model_label();
   j["model_after"] = r.after_fit.model_label();
   j["local_gravity"] = r.local_gravity;
@@ -243,15 +242,16 @@ void write_analysis_report(std::ostream& out, const AnalysisResult& r) {
         << g.rms * 1e3 << " mm/s^2"
         << (g.consistent_with_noise ? "" : "  <- not consistent with noise") << "\n";
   };
-  for (const core::SetupMistake& m : r.setup_mistakes) out << "  setup mistake " << m.text() << "\n";
+  for (const core::SetupMistake& m : r.setup_mistakes)
+    out << "  setup mistake " << m.text() << "\n";
   out << "discrepancy analysis (g = " << std::setprecision(8) << r.local_gravity
       << std::setprecision(4) << " m/s^2)\n";
   gap_line("gap before", r.before_fit.model_label(), r.before.summary);
   gap_line("gap after ", r.after_fit.model_label(), r.after.summary);
   if (std::isfinite(r.before.cv.cv_chi2_per_point))
     out << "  out of sample (" << r.before.cv.folds
-        << " time-block folds): cross-validated chi2 per point before " << r.before.cv.cv_chi2_per_point
-        << ", after " << r.after.cv.cv_chi2_per_point << "\n";
+        << " time-block folds): cross-validated chi2 per point before "
+        << r.before.cv.cv_chi2_per_point << ", after " << r.after.cv.cv_chi2_per_point << "\n";
   out << "  noise model: " << r.noise_model.kind();
   if (!r.noise_model.white()) {
     out << " (from " << r.noise_model.source << "; per u v w: sigma";

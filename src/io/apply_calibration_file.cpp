@@ -32,7 +32,8 @@ ApplyCalibration read_apply_calibration(const std::string& path) {
       for (int i = 0; i < 9; ++i) out.P(i / 3, i % 3) = sm[i].as<double>();
       for (int i = 0; i < 3; ++i) b(i) = bias[i].as<double>();
     } catch (const YAML::Exception&) {
-      throw IoError("the imu_calib file '" + path + "' has a value in SM or bias that is not a number");
+      throw IoError("the imu_calib file '" + path +
+                    "' has a value in SM or bias that is not a number");
     }
     const Eigen::FullPivLU<Eigen::Matrix3d> lu(out.P);
     if (!out.P.allFinite() || !b.allFinite() || !lu.isInvertible()) {
@@ -43,7 +44,8 @@ ApplyCalibration read_apply_calibration(const std::string& path) {
     return out;
   }
   if (!root.IsMap() || !root["cross_sensitivity"]) {
-    throw IoError("'" + path + "' is neither a calibration result (offline_fit JSON, intrinsics.yaml) "
+    throw IoError("'" + path +
+                  "' is neither a calibration result (offline_fit JSON, intrinsics.yaml) "
                   "nor an imu_calib file (SM, bias)");
   }
   const StoredResult result = read_result_file(path);

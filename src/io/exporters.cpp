@@ -8,8 +8,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "accel_intrinsics/core/model/calibration_forms.h"
 #include "accel_intrinsics/core/fit/quality.h"
+#include "accel_intrinsics/core/model/calibration_forms.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "kalibr_noise_keys.h"
 
@@ -54,7 +54,9 @@ std::string list(const double* v, int n) {
   return out + "]";
 }
 
-std::string vector_list(const Eigen::Vector3d& v) { return list(v.data(), 3); }
+std::string vector_list(const Eigen::Vector3d& v) {
+  return list(v.data(), 3);
+}
 
 std::string matrix_rows_list(const Eigen::Matrix3d& m) {
   std::string out = "[";
@@ -117,7 +119,8 @@ ExportText imu_calib_text(const CalibrationToExport& c, std::vector<std::string>
   Eigen::Matrix<double, 9, 1> sm;
   for (int i = 0; i < 9; ++i) sm(i) = P(i / 3, i % 3);
   ExportText out;
-  out.text = comment_block(head) + "SM: " + list(sm.data(), 9) + "\nbias: " + vector_list(bias) + "\n";
+  out.text =
+      comment_block(head) + "SM: " + list(sm.data(), 9) + "\nbias: " + vector_list(bias) + "\n";
   return out;
 }
 
@@ -166,15 +169,17 @@ ExportText kalibr_text(const CalibrationToExport& c, std::vector<std::string> li
       "kalibr's accelerometer model is raw = M a' + b with M lower triangular",
       "direction: M maps specific force to raw outputs (frame a' -> raw); a' = Q a is the DUT "
       "frame turned so that x lies along u and y in the u-v plane (M M^T = S S^T), with Q = " +
-          matrix_rows_list(f.Q) + (f.Q.determinant() < 0.0 ? " (a reflection: the triad is left-handed)" : ""),
+          matrix_rows_list(f.Q) +
+          (f.Q.determinant() < 0.0 ? " (a reflection: the triad is left-handed)" : ""),
       "b: kalibr estimates its own bias; the fitted raw offset O is " + vector_words(c.O) +
           " m/s^2",
       "noise: accelerometer_noise_density (m/s^2)/sqrt(Hz) is the continuous-time white-noise "
       "density (per-sample std = density * sqrt(update_rate)); kalibr takes one value for the "
       "three axes: the largest of u, v, w"};
   head.insert(head.end(), lines.begin(), lines.end());
-  std::string body = "imu0:\n  model: scale-misalignment\n  accelerometers:\n    M: " +
-                     matrix_rows_list(f.M) + "\n";
+  std::string body =
+      "imu0:\n  model: scale-misalignment\n  accelerometers:\n    M: " + matrix_rows_list(f.M) +
+      "\n";
   const detail::KalibrNoiseKeys keys =
       detail::kalibr_noise_keys(c.noise_density, c.random_walk, c.rate_hz, "  ");
   body += keys.lines;
@@ -194,7 +199,8 @@ ExportText imu_tk_text(const CalibrationToExport& c, std::vector<std::string> li
   const core::UpperTriangularInverseForm f = core::upper_triangular_inverse_form(c.S);
   std::ostringstream s;
   auto matrix = [&s](const Eigen::Matrix3d& m) {
-    for (int r = 0; r < 3; ++r) s << num(m(r, 0)) << " " << num(m(r, 1)) << " " << num(m(r, 2)) << "\n";
+    for (int r = 0; r < 3; ++r)
+      s << num(m(r, 0)) << " " << num(m(r, 1)) << " " << num(m(r, 2)) << "\n";
     s << "\n";
   };
   matrix(f.T);
@@ -206,7 +212,8 @@ ExportText imu_tk_text(const CalibrationToExport& c, std::vector<std::string> li
       "and stops: these comments must stay below them)",
       "imu_tk applies a' = T K (raw - B): T misalignment (unit upper triangular), K scale, B bias",
       "direction: T K maps raw outputs to specific force (raw -> frame a'); a' = Q a, the DUT "
-      "frame turned by Q = " + matrix_rows_list(f.Q) + "; T K = Q P; B = O (raw)"};
+      "frame turned by Q = " +
+          matrix_rows_list(f.Q) + "; T K = Q P; B = O (raw)"};
   tail.insert(tail.end(), lines.begin(), lines.end());
   ExportText out;
   out.text = s.str() + comment_block(tail);
@@ -243,7 +250,8 @@ ExportText diagonal_text(ExportFormat format, const CalibrationToExport& c,
   if (px4) {
     s << comment_block(head) << "#\n# Vehicle-Id Component-Id Name Value Type\n";
     const char axes[3] = {'X', 'Y', 'Z'};
-    for (int i = 0; i < 3; ++i) s << "1\t1\tCAL_ACC0_" << axes[i] << "OFF\t" << num(c.O(i)) << "\t9\n";
+    for (int i = 0; i < 3; ++i)
+      s << "1\t1\tCAL_ACC0_" << axes[i] << "OFF\t" << num(c.O(i)) << "\t9\n";
     for (int i = 0; i < 3; ++i) {
       s << "1\t1\tCAL_ACC0_" << axes[i] << "SCALE\t" << num(f.scale(i)) << "\t9\n";
     }
@@ -296,8 +304,8 @@ ExportFormat parse_export_format(const std::string& name) {
 std::pair<ExportFormat, std::string> parse_export_spec(const std::string& spec) {
   const std::size_t eq = spec.find('=');
   if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size()) {
-    throw IoError("--export '" + spec + "' is not NAME=FILE (NAME one of: " +
-                  export_format_list() + ")");
+    throw IoError("--export '" + spec + "' is not NAME=FILE (NAME one of: " + export_format_list() +
+                  ")");
   }
   return {parse_export_format(spec.substr(0, eq)), spec.substr(eq + 1)};
 }
@@ -316,7 +324,8 @@ CalibrationToExport calibration_to_export(const StoredResult& result, const std:
   c.terms_left_out = terms_of(names, targets);
   c.noise_density = result.noise_density;
   c.rate_hz = result.sample_rate_hz;
-  if (!result.quality_pass) c.quality_failure = core::Quality{false, result.quality_reasons}.summary();
+  if (!result.quality_pass)
+    c.quality_failure = core::Quality{false, result.quality_reasons}.summary();
   c.source = source;
   return c;
 }

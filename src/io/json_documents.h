@@ -4,10 +4,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/analysis/discrepancy.h"
-#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/analysis/raw_stream_analysis.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/io/result_document.h"
 
 namespace accel_intrinsics {
@@ -17,7 +17,8 @@ namespace detail {
 // The fit's keys (the contract's plus model_label, *_std, chi2, dof, fitted_effects).
 nlohmann::json fit_json(const core::FitResult& fit);
 // "noise_model" (docs/design.md section 12): the string "white", or {kind, source, rate_hz, rest
-// {t_start, t_end, samples}, axes {u,v,w: {white_std, gm_sigma, gm_tau_s, rw_density, slow_scale_rel_var}}}.
+// {t_start, t_end, samples}, axes {u,v,w: {white_std, gm_sigma, gm_tau_s, rw_density,
+// slow_scale_rel_var}}}.
 nlohmann::json noise_model_json(const core::NoiseModel& model);
 // The analysis' keys (analysis_report.h).
 nlohmann::json analysis_json(const core::AnalysisResult& analysis);

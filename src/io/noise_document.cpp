@@ -1,11 +1,11 @@
 #include "accel_intrinsics/io/noise_document.h"
 
-#include "kalibr_noise_keys.h"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+
+#include "kalibr_noise_keys.h"
 
 namespace accel_intrinsics {
 namespace io {
@@ -41,7 +41,8 @@ constexpr char kConventions[] =
 
 std::string noise_json_text(const core::StaticRecordNoise& noise, const std::string& source) {
   nlohmann::json j = nlohmann::json::object();
-  j["noise_density"] = per_axis(noise, [](const core::NoiseParameters& p) { return p.white_density; });
+  j["noise_density"] =
+      per_axis(noise, [](const core::NoiseParameters& p) { return p.white_density; });
   j["noise_density_std"] =
       per_axis(noise, [](const core::NoiseParameters& p) { return p.white_density_std; });
   j["bias_instability"] =

@@ -30,10 +30,11 @@ void write_residuals_csv(std::ostream& out, const core::PositionTable& table,
     for (int s = 0; s < 3; ++s) {
       const double rb = row.mean(s) - mb(s);
       const double ra = row.mean(s) - ma(s);
-      out << (row.has_direction ? "-" : core::phase_name(row.phase)) << ',' << row.step << ',' << row.angle_rad << ','
-          << geoms[r].time_s << ',' << geoms[r].approach << ',' << core::accelerometer_name(s)
-          << ',' << row.mean(s) << ',' << se[r](s) << ',' << mb(s) << ',' << rb << ','
-          << rb / se[r](s) << ',' << ma(s) << ',' << ra << ',' << ra / se[r](s) << '\n';
+      out << (row.has_direction ? "-" : core::phase_name(row.phase)) << ',' << row.step << ','
+          << row.angle_rad << ',' << geoms[r].time_s << ',' << geoms[r].approach << ','
+          << core::accelerometer_name(s) << ',' << row.mean(s) << ',' << se[r](s) << ',' << mb(s)
+          << ',' << rb << ',' << rb / se[r](s) << ',' << ma(s) << ',' << ra << ',' << ra / se[r](s)
+          << '\n';
     }
   }
 }

@@ -202,8 +202,8 @@ class Reader {
 const char* const kAccelerometers[3] = {"u", "v", "w"};
 const char* const kAngles[3] = {"uv", "vw", "wu"};
 
-// A hand tumble's keys (docs/design.md section 11): the frame of S, the rests and rejected spans, the
-// detector's levels, the coverage and the pose to try next.
+// A hand tumble's keys (docs/design.md section 11): the frame of S, the rests and rejected spans,
+// the detector's levels, the coverage and the pose to try next.
 void add_tumble_keys(const core::CalibrationReport& report, const ResultContext& context,
                      nlohmann::json* j) {
   if (report.certificate.model == core::FitModel::Tumble) (*j)["frame"] = core::kTumbleFrame;
@@ -521,7 +521,8 @@ StoredResult read_result_file(const std::string& path) {
   if (const YAML::Node quality = root["quality"]) {
     out.quality_pass = r.child(quality, "pass", "quality.").as<bool>(false);
     if (const YAML::Node reasons = quality["reasons"]) {
-      for (const YAML::Node& reason : reasons) out.quality_reasons.push_back(reason.as<std::string>(""));
+      for (const YAML::Node& reason : reasons)
+        out.quality_reasons.push_back(reason.as<std::string>(""));
     }
   }
   if (root["sample_rate_hz"]) {

@@ -8,7 +8,9 @@ namespace io {
 namespace {
 
 // Decimal places that keep two significant digits of u (negative: tens, hundreds...).
-int decimals_for(double u) { return 1 - static_cast<int>(std::floor(std::log10(std::abs(u)))); }
+int decimals_for(double u) {
+  return 1 - static_cast<int>(std::floor(std::log10(std::abs(u))));
+}
 
 // x rounded to d decimal places (d < 0: to tens, hundreds...), printed with max(d, 0) decimals.
 std::string fixed(double x, int d) {

@@ -26,9 +26,13 @@ std::string format_utc(double unix_s, const char* format) {
 
 }  // namespace
 
-std::string utc_basic_time(double unix_s) { return format_utc(unix_s, "%Y%m%dT%H%M%SZ"); }
+std::string utc_basic_time(double unix_s) {
+  return format_utc(unix_s, "%Y%m%dT%H%M%SZ");
+}
 
-std::string utc_iso_time(double unix_s) { return format_utc(unix_s, "%Y-%m-%dT%H:%M:%SZ"); }
+std::string utc_iso_time(double unix_s) {
+  return format_utc(unix_s, "%Y-%m-%dT%H:%M:%SZ");
+}
 
 std::string device_directory_name(const std::string& serial) {
   std::string name;

@@ -13,8 +13,8 @@
 namespace accel_intrinsics {
 namespace io {
 
-std::string noise_axis_words(const std::string& axis, const core::AxisNoiseModel& a,
-                             double rate_hz, const std::string& unit) {
+std::string noise_axis_words(const std::string& axis, const core::AxisNoiseModel& a, double rate_hz,
+                             const std::string& unit) {
   const std::string density_unit = unit == "m/s^2" ? "(m/s^2)" : unit;
   std::string words = axis + ":";
   std::string separator = " ";
@@ -35,8 +35,8 @@ std::string noise_axis_words(const std::string& axis, const core::AxisNoiseModel
   }
   if (!a.slow()) words += separator + "no slow part";
   if (a.slow() && a.slow_scale_rel_var > 0.0)  // as estimated from the data (noise.h)
-    words += " (relative std of its scale " + two_significant(std::sqrt(a.slow_scale_rel_var)) +
-             ")";
+    words +=
+        " (relative std of its scale " + two_significant(std::sqrt(a.slow_scale_rel_var)) + ")";
   return words;
 }
 
@@ -55,7 +55,8 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
   out << "model:         " << r.model_label() << "\n";
   out << "local gravity: " << std::setprecision(9) << r.local_gravity << " m/s^2\n";
   if (r.model == core::FitModel::Tumble) {
-    out << "method:        hand tumble, orientations unknown: intrinsics only (S in the sensor's own "
+    out << "method:        hand tumble, orientations unknown: intrinsics only (S in the sensor's "
+           "own "
            "frame)\n\n";
   } else {
     out << "positions:     x " << r.positions[0] << ", y " << r.positions[1] << ", z "
@@ -122,7 +123,8 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
   out << "\n  reduced chi2:  " << std::setprecision(3) << r.reduced_chi2 << " (chi2 "
       << std::setprecision(4) << r.chi2 << ", dof " << r.dof << ")\n";
   out << "  residual rms:  " << two_significant(r.residual_rms) << " " << output_unit << "\n";
-  // The noise the weights assumed (docs/design.md section 12): white, or the model of the long rest.
+  // The noise the weights assumed (docs/design.md section 12): white, or the model of the long
+  // rest.
   out << "  noise model:   " << r.noise_model.kind();
   if (!r.noise_model.white()) {
     // How the fit used it (fit.cpp): the joint and the tumble fits by generalized least squares
@@ -134,8 +136,9 @@ void write_fit_report(std::ostream& out, const core::FitResult& r, const ResultC
         << ")";
     if (!r.noise_model.source.empty()) out << "\n    from " << r.noise_model.source;
     for (int s = 0; s < 3; ++s) {
-      out << "\n    " << noise_axis_words(core::accelerometer_name(s), r.noise_model.axes[s],
-                                          r.noise_model.rate_hz, output_unit);
+      out << "\n    "
+          << noise_axis_words(core::accelerometer_name(s), r.noise_model.axes[s],
+                              r.noise_model.rate_hz, output_unit);
     }
   }
   out << "\n";
@@ -185,7 +188,8 @@ void write_text_report(std::ostream& out, const core::CalibrationReport& report,
   if (context.rest_detection) {
     const core::RestDetection& d = *context.rest_detection;
     out << "  rests:         " << d.rests.size() << " fitted";
-    if (!d.rejected.empty()) out << ", " << d.rejected.size() << " spans rejected (JSON rejected_spans)";
+    if (!d.rejected.empty())
+      out << ", " << d.rejected.size() << " spans rejected (JSON rejected_spans)";
     out << "\n";
   }
   if (report.coverage) {

@@ -7,7 +7,9 @@ namespace accel_intrinsics {
 namespace io {
 
 std::string tumble_progress_json(const core::TumbleProgress& p) {
-  auto number = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
+  auto number = [](double x) {
+    return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr);
+  };
   nlohmann::json j;
   j["rests"] = p.rests;
   j["rejected"] = p.rejected;

@@ -2,9 +2,9 @@
 // in a nodelet manager beside the IMU driver and the orientation filter, where messages pass by
 // pointer (no serialization, no sockets). Parameters as the node's (apply_calibration_node.h).
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 
 #include <memory>
+#include <pluginlib/class_list_macros.hpp>
 
 #include "accel_intrinsics/ros/apply_calibration_node.h"
 #include "accel_intrinsics/ros/params.h"
@@ -16,7 +16,8 @@ class ApplyCalibrationNodelet : public nodelet::Nodelet {
   void onInit() override {
     try {
       io::ApplyCalibration calibration;
-      ApplyCalibrationOptions options = ApplyCalibrationOptions::load(getPrivateNodeHandle(), &calibration);
+      ApplyCalibrationOptions options =
+          ApplyCalibrationOptions::load(getPrivateNodeHandle(), &calibration);
       // In a manager the publisher's thread may be a driver's: unless asked otherwise, messages
       // go to the nodelet's own queue and thread (which naps coalesce_s to handle them in
       // batches; coalesce_s 0: the manager's queue), never napping in someone else's thread

@@ -3,9 +3,9 @@
 // IMU driver's nodelet manager, where the IMU messages pass by pointer (no serialization, no
 // sockets). Parameters as the node's (config/calibration.yaml).
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 
 #include <memory>
+#include <pluginlib/class_list_macros.hpp>
 #include <string>
 
 #include "accel_intrinsics/ros/calibration_node.h"
@@ -21,7 +21,8 @@ class CalibrationNodelet : public nodelet::Nodelet {
     try {
       const std::string mode = pnh.param<std::string>("mode", "gimbal");
       if (mode == "tumble") {
-        tumble_.reset(new TumbleCalibrationNode(getNodeHandle(), pnh, TumbleNodeOptions::load(pnh)));
+        tumble_.reset(
+            new TumbleCalibrationNode(getNodeHandle(), pnh, TumbleNodeOptions::load(pnh)));
         return;
       }
       if (mode != "gimbal") throw ParamError("parameter ~mode: '" + mode + "' (gimbal or tumble)");

@@ -10,8 +10,9 @@
 namespace ai = accel_intrinsics;
 
 int main(int argc, char** argv) {
-  CLI::App app{"Writes a saved calibration result (offline_fit JSON or the calibration node's "
-               "intrinsics.yaml) in the file format of another tool."};
+  CLI::App app{
+      "Writes a saved calibration result (offline_fit JSON or the calibration node's "
+      "intrinsics.yaml) in the file format of another tool."};
   ai::ExportCalibrationArguments args;
   app.add_option("--result", args.result, "result file (JSON or YAML)")->required();
   app.add_option("--format", args.format, "one of: " + ai::io::export_format_list())->required();

@@ -11,16 +11,18 @@
 namespace ai = accel_intrinsics;
 
 int main(int argc, char** argv) {
-  CLI::App app{"Noise figures of a long static recording: overlapping Allan deviation, white-noise "
-               "density N, bias instability B (with its tau) and random walk K per accelerometer."};
+  CLI::App app{
+      "Noise figures of a long static recording: overlapping Allan deviation, white-noise "
+      "density N, bias instability B (with its tau) and random walk K per accelerometer."};
   ai::NoiseReportArguments args;
   app.add_option("--bag", args.bag, "recording (rosbag) with sensor_msgs/Imu messages");
   app.add_option("--csv", args.csv, "samples: header t,u,v,w, then seconds and m/s^2");
-  auto* topic = app.add_option("--imu-topic", args.imu_topic, "IMU topic in the bag")
-                    ->capture_default_str();
+  auto* topic =
+      app.add_option("--imu-topic", args.imu_topic, "IMU topic in the bag")->capture_default_str();
   app.add_option("--json", args.json_out, "write the figures and the Allan curve as JSON");
   app.add_option("--plot", args.plot_out, "write a log-log Allan plot (PNG) with the fitted lines");
-  app.add_option("--kalibr", args.kalibr_out, "write kalibr's IMU configuration (accelerometer keys)");
+  app.add_option("--kalibr", args.kalibr_out,
+                 "write kalibr's IMU configuration (accelerometer keys)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

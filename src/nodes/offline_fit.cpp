@@ -1,11 +1,11 @@
 // offline_fit: the command line of the offline tool (include/accel_intrinsics/ros/offline_fit.h).
+#include "accel_intrinsics/ros/offline_fit.h"
+
 #include <console_bridge/console.h>
 
 #include <iostream>
 #include <string>
 #include <vector>
-
-#include "accel_intrinsics/ros/offline_fit.h"
 
 namespace ai = accel_intrinsics;
 

@@ -116,7 +116,8 @@ AccelerometerNode::AccelerometerNode(ros::NodeHandle nh, ros::NodeHandle pnh,
   simulated_ = simulated.get();
   source_ = std::move(simulated);
   if (source_->publishes_temperature())
-    temperature_pub_ = nh_.advertise<sensor_msgs::Temperature>(core::channel_spec(core::Channel::Temperature).topic, 1000);
+    temperature_pub_ = nh_.advertise<sensor_msgs::Temperature>(
+        core::channel_spec(core::Channel::Temperature).topic, 1000);
   tf_sub_ = nh_.subscribe(names::kTfTopic, 1000, &AccelerometerNode::on_tf, this,
                           ros::TransportHints().tcpNoDelay());
   command_sub_ =

@@ -16,8 +16,8 @@ CalibrationApplier::CalibrationApplier(const io::ApplyCalibration& calibration)
     : calibration_(calibration) {
   noise_known_ = calibration.sample_std.allFinite();
   if (noise_known_) {
-    covariance_ = calibration.P * calibration.sample_std.cwiseAbs2().asDiagonal() *
-                  calibration.P.transpose();
+    covariance_ =
+        calibration.P * calibration.sample_std.cwiseAbs2().asDiagonal() * calibration.P.transpose();
   }
 }
 
@@ -67,7 +67,8 @@ ApplyCalibrationOptions ApplyCalibrationOptions::load(const ros::NodeHandle& pnh
   return o;
 }
 
-ApplyCalibrationNode::ApplyCalibrationNode(ros::NodeHandle nh, const ApplyCalibrationOptions& options,
+ApplyCalibrationNode::ApplyCalibrationNode(ros::NodeHandle nh,
+                                           const ApplyCalibrationOptions& options,
                                            const io::ApplyCalibration& calibration)
     : applier_(calibration) {
   pub_ = nh.advertise<sensor_msgs::Imu>(names::kCalibratedImuTopic, options.queue_size);
@@ -88,8 +89,8 @@ ApplyCalibrationNode::ApplyCalibrationNode(ros::NodeHandle nh, const ApplyCalibr
   }
   ros::SubscribeOptions sub_options = ros::SubscribeOptions::create<sensor_msgs::Imu>(
       names::kImuTopic, options.queue_size,
-      boost::bind(&ApplyCalibrationNode::on_imu, this, boost::placeholders::_1), ros::VoidConstPtr(),
-      queue);
+      boost::bind(&ApplyCalibrationNode::on_imu, this, boost::placeholders::_1),
+      ros::VoidConstPtr(), queue);
   sub_options.transport_hints = ros::TransportHints().tcpNoDelay();
   immediate_queue_.set_coalesce_period(options.coalesce_s);
   sub_ = nh.subscribe(sub_options);
@@ -155,7 +156,8 @@ void ApplyCalibrationNode::flush_output() {
   out_count_ = 0;
   // The publisher's own path with a prepared buffer: the subscriber links write it as it is.
   ros::SerializedMessage m;
-  ros::TopicManager::instance()->publish(pub_.getTopic(), [&batch]() { return batch; }, m);
+  ros::TopicManager::instance()->publish(
+      pub_.getTopic(), [&batch]() { return batch; }, m);
 }
 
 void ApplyCalibrationNode::flush_stale() {

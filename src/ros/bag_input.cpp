@@ -1,8 +1,6 @@
 // The feed loop of bag reading (bag_input.h): messages of the run's topics to the assembler.
 #include "accel_intrinsics/ros/bag_input.h"
 
-#include <filesystem>
-
 #include <ros/serialization.h>
 #include <rosbag/exceptions.h>
 #include <rosbag/view.h>
@@ -11,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <iomanip>
 #include <memory>
 #include <ostream>
@@ -203,15 +202,14 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
       }
       return true;
     };
-    if (scanner &&
-        !(scanner->connections_of(stats.imu_topic,
-                                  ros::message_traits::MD5Sum<sensor_msgs::Imu>::value(),
-                                  &imu_connections, &total) &&
-          (stats.command_topic.empty() ||
-           scanner->connections_of(stats.command_topic,
-                                   ros::message_traits::MD5Sum<GimbalCommand>::value(),
-                                   &command_connections, &total)) &&
-          channel_connections_found())) {
+    if (scanner && !(scanner->connections_of(stats.imu_topic,
+                                             ros::message_traits::MD5Sum<sensor_msgs::Imu>::value(),
+                                             &imu_connections, &total) &&
+                     (stats.command_topic.empty() ||
+                      scanner->connections_of(stats.command_topic,
+                                              ros::message_traits::MD5Sum<GimbalCommand>::value(),
+                                              &command_connections, &total)) &&
+                     channel_connections_found())) {
       scanner.reset();  // another version of a message type: rosbag's instantiate() reports it
       open_bag(bag, path);
     }
@@ -375,7 +373,8 @@ std::vector<std::string> expand_bag_paths(const std::vector<std::string>& paths)
     }
     std::vector<std::string> found;
     for (const fs::directory_entry& e : fs::directory_iterator(p, ec)) {
-      if (e.is_regular_file(ec) && e.path().extension() == ".bag") found.push_back(e.path().string());
+      if (e.is_regular_file(ec) && e.path().extension() == ".bag")
+        found.push_back(e.path().string());
     }
     if (ec) throw BagInputError("cannot list directory '" + p + "': " + ec.message());
     if (found.empty()) throw BagInputError("directory '" + p + "' holds no *.bag files");

@@ -1,10 +1,9 @@
 // Topic resolution for bag reading (bag_topics.h).
 #include "accel_intrinsics/ros/bag_topics.h"
 
-#include <algorithm>
-
 #include <rosbag/view.h>
 
+#include <algorithm>
 #include <map>
 
 #include "accel_intrinsics/ros/names.h"
@@ -123,7 +122,8 @@ std::string resolve_topic(const std::string& requested, const std::vector<BagTop
   return found.name;
 }
 
-std::string resolve_optional_topic(const std::string& requested, const std::vector<BagTopic>& topics,
+std::string resolve_optional_topic(const std::string& requested,
+                                   const std::vector<BagTopic>& topics,
                                    const std::string& expected_datatype,
                                    const std::string& preferred_namespace) {
   if (requested.empty()) return "";
@@ -175,18 +175,17 @@ RunTopics resolve_run_topics(const std::string& imu_requested, const std::string
       run.note = "no IMU topic '" + imu_requested + "'; using " + run.imu +
                  ", the only sensor_msgs/Imu topic of the bag (--imu-topic names another)";
       run.command = command;
-      run.channels = resolve_channels(
-          channels_requested, topics,
-          namespace_of(command, names::kGimbalCommandTopic, command_requested));
+      run.channels =
+          resolve_channels(channels_requested, topics,
+                           namespace_of(command, names::kGimbalCommandTopic, command_requested));
       return run;
     }
   }
   const std::string imu_ns = namespace_of(run.imu, names::kImuTopic, imu_requested);
   // A bag with no gimbal command topic at all is a hand tumble (docs/design.md section 11): the IMU
   // alone. A command topic that exists but does not resolve is still an error.
-  const bool any_command_topic =
-      std::any_of(topics.begin(), topics.end(),
-                  [](const BagTopic& t) { return t.datatype == kCommandType; });
+  const bool any_command_topic = std::any_of(
+      topics.begin(), topics.end(), [](const BagTopic& t) { return t.datatype == kCommandType; });
   if (!any_command_topic && command_optional) {
     run.channels = resolve_channels(channels_requested, topics, imu_ns);
     return run;

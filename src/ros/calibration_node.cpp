@@ -13,7 +13,6 @@
 #include "accel_intrinsics/AbortRun.h"
 #include "accel_intrinsics/ResumeAt.h"
 #include "accel_intrinsics/core/fit/quality.h"
-#include "accel_intrinsics/ros/result_files.h"
 #include "accel_intrinsics/io/analysis_report.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/result_document.h"
@@ -22,6 +21,7 @@
 #include "accel_intrinsics/ros/dwell_message.h"
 #include "accel_intrinsics/ros/names.h"
 #include "accel_intrinsics/ros/params.h"
+#include "accel_intrinsics/ros/result_files.h"
 #include "accel_intrinsics/ros/scripts.h"
 
 namespace accel_intrinsics {
@@ -93,8 +93,9 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
   timer_ =
       nh_.createTimer(ros::Duration(options_.flush_period_s), &CalibrationNode::on_timer, this);
   last_activity_ = ros::WallTime::now();
-  wall_timer_ = nh_.createWallTimer(ros::WallDuration(std::min(0.25, options_.idle_fit_after_s / 2)),
-                                    &CalibrationNode::on_wall_timer, this);
+  wall_timer_ =
+      nh_.createWallTimer(ros::WallDuration(std::min(0.25, options_.idle_fit_after_s / 2)),
+                          &CalibrationNode::on_wall_timer, this);
   ROS_INFO("calibration: model %s, local_gravity %.6f m/s^2, reorder window %.3f s, output %s%s%s",
            core::model_name(options_.calibrate.fit.model), options_.calibrate.fit.local_gravity,
            options_.run.assembler.reorder_window_s,
@@ -211,8 +212,7 @@ void CalibrationNode::on_wall_timer(const ros::WallTimerEvent&) {
       last_clock_ = clock;
       last_activity_ = wall;
     }
-    if (!run_.waiting_after_done() ||
-        (wall - last_activity_).toSec() < options_.idle_fit_after_s) {
+    if (!run_.waiting_after_done() || (wall - last_activity_).toSec() < options_.idle_fit_after_s) {
       return;
     }
     carry_out(run_.on_streams_idle(), &requests);
@@ -264,8 +264,8 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
             const std::size_t later = static_cast<std::size_t>(std::count_if(
                 &a + 1, actions.data() + actions.size(),
                 [](const core::RunAction& b) { return b.kind == Kind::DwellAccepted; }));
-            dwell_pub_.publish(to_dwell_msg(a.row, rows > later ? rows - later - 1 : 0,
-                                            options_.frame_id));
+            dwell_pub_.publish(
+                to_dwell_msg(a.row, rows > later ? rows - later - 1 : 0, options_.frame_id));
           }
           break;
         case Kind::CheckpointState:
@@ -291,8 +291,8 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
             // The analysis takes seconds: off the lock, on the worker.
             {
               std::lock_guard<std::mutex> job_lock(job_mutex_);
-              job_ = FitJob{a.fit_ticket, a.table, {a.move_commands, a.move_samples},
-                            a.counters, ros::Time::now(), a.noise_model};
+              job_ = FitJob{a.fit_ticket, a.table,          {a.move_commands, a.move_samples},
+                            a.counters,   ros::Time::now(), a.noise_model};
             }
             job_cv_.notify_one();
             ROS_INFO(
@@ -359,7 +359,7 @@ void CalibrationNode::publish_certificate(const core::CalibrationReport& report,
     io::ResultContext context = result_context(stamp);
     context.samples = counters;
     if (!write_result_files(files_, options_.exports, report, context)) return;
-    const std::string device = !options_.archive_device.empty() ? options_.archive_device
+    const std::string device = !options_.archive_device.empty()       ? options_.archive_device
                                : device_serial_ != io::kUnnamedDevice ? device_serial_
                                                                       : "";
     archive_result_file(options_.archive, device, options_.archive_rig, files_.result_path(),
@@ -523,16 +523,16 @@ void CalibrationNode::publish_status(const ros::Time& now) {
   const core::RunStatus st = run_.status(now.toSec());
   last_state_ = st.state;
   // A result that fails the quality gate is there to look at but is no calibration: say so.
-  const std::string message =
-      !run_.has_result() ? run_.missing_message()
-      : result_.quality_pass
-          ? std::string("result available")
-          : "result fails the quality gate: " +
-                core::Quality{false, result_.quality_reasons}.summary();
-  diagnostic_msgs::DiagnosticStatus msg = to_status_msg(
-      st, message,
-      run_.has_result() ? result_.model : "", now.toSec(), nh_.resolveName("calibration"));
-  if (run_.has_result() && !result_.quality_pass) msg.level = diagnostic_msgs::DiagnosticStatus::ERROR;
+  const std::string message = !run_.has_result() ? run_.missing_message()
+                              : result_.quality_pass
+                                  ? std::string("result available")
+                                  : "result fails the quality gate: " +
+                                        core::Quality{false, result_.quality_reasons}.summary();
+  diagnostic_msgs::DiagnosticStatus msg =
+      to_status_msg(st, message, run_.has_result() ? result_.model : "", now.toSec(),
+                    nh_.resolveName("calibration"));
+  if (run_.has_result() && !result_.quality_pass)
+    msg.level = diagnostic_msgs::DiagnosticStatus::ERROR;
   status_pub_.publish(msg);
 }
 

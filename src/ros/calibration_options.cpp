@@ -6,9 +6,8 @@
 #include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/budget_file.h"
-#include "accel_intrinsics/ros/calibration_node.h"
-#include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/exporters.h"
+#include "accel_intrinsics/ros/calibration_node.h"
 #include "accel_intrinsics/ros/params.h"
 
 namespace accel_intrinsics {

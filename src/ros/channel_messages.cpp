@@ -20,11 +20,10 @@ ChannelMessage bind(core::Channel c, ValueOf value_of) {
   };
   m.subscribe = [sample_of](ros::NodeHandle& nh, const std::string& topic, std::uint32_t queue,
                             ChannelMessage::Sink sink) {
-    return nh.subscribe<Msg>(topic, queue,
-                             boost::function<void(const typename Msg::ConstPtr&)>(
-                                 [sample_of, sink](const typename Msg::ConstPtr& msg) {
-                                   sink(sample_of(*msg));
-                                 }));
+    return nh.subscribe<Msg>(
+        topic, queue,
+        boost::function<void(const typename Msg::ConstPtr&)>(
+            [sample_of, sink](const typename Msg::ConstPtr& msg) { sink(sample_of(*msg)); }));
   };
   m.deserialize = [sample_of](std::uint8_t* data, std::uint32_t length) {
     Msg msg;
@@ -42,8 +41,9 @@ ChannelMessage bind(core::Channel c, ValueOf value_of) {
 std::vector<ChannelMessage> make_bindings() {
   // In the order of core::kChannels.
   std::vector<ChannelMessage> bindings{
-      bind<sensor_msgs::Temperature>(core::Channel::Temperature,
-                                     [](const sensor_msgs::Temperature& m) { return m.temperature; }),
+      bind<sensor_msgs::Temperature>(
+          core::Channel::Temperature,
+          [](const sensor_msgs::Temperature& m) { return m.temperature; }),
   };
   if (bindings.size() != core::kChannelCount)
     throw std::logic_error("channel_messages: one binding per core::kChannels row");

@@ -143,9 +143,9 @@ void GimbalControllerNode::wire_driver_topics() {
         topics.imu, 1000, [this](const sensor_msgs::Imu::ConstPtr& msg) {
           // Arrival time: only samples after the operator's continue count, whatever the IMU's
           // own clock says.
-          driver_->on_imu(ros::Time::now().toSec(), Eigen::Vector3d(msg->linear_acceleration.x,
-                                             msg->linear_acceleration.y,
-                                             msg->linear_acceleration.z));
+          driver_->on_imu(ros::Time::now().toSec(),
+                          Eigen::Vector3d(msg->linear_acceleration.x, msg->linear_acceleration.y,
+                                          msg->linear_acceleration.z));
         });
   }
   driver_->connect(this);
@@ -330,10 +330,10 @@ void GimbalControllerNode::publish_progress(const ros::Time& now, const core::Pr
   diagnostic_msgs::DiagnosticStatus msg;
   msg.name = nh_.resolveName("gimbal_controller");
   msg.hardware_id = driver_->name();
-  msg.level = s.level == core::ProtocolStatus::Level::Error ? diagnostic_msgs::DiagnosticStatus::ERROR
-              : s.level == core::ProtocolStatus::Level::Warn
-                  ? diagnostic_msgs::DiagnosticStatus::WARN
-                  : diagnostic_msgs::DiagnosticStatus::OK;
+  msg.level =
+      s.level == core::ProtocolStatus::Level::Error  ? diagnostic_msgs::DiagnosticStatus::ERROR
+      : s.level == core::ProtocolStatus::Level::Warn ? diagnostic_msgs::DiagnosticStatus::WARN
+                                                     : diagnostic_msgs::DiagnosticStatus::OK;
   msg.message = s.text;
   msg.values.push_back(kv("state", state_name(s.state)));
   msg.values.push_back(kv("phase", s.running ? core::phase_name(s.position.phase) : ""));
@@ -349,7 +349,8 @@ void GimbalControllerNode::publish_progress(const ros::Time& now, const core::Pr
     // What supervise asks the operator, and the target's stage positions (deg).
     msg.values.push_back(kv("request", s.operator_request));
     msg.values.push_back(kv("pose_check", s.operator_complaint));
-    for (const auto& a : s.stage_deg) msg.values.push_back(kv("stage_" + a.first + "_deg", num(a.second, 3)));
+    for (const auto& a : s.stage_deg)
+      msg.values.push_back(kv("stage_" + a.first + "_deg", num(a.second, 3)));
   }
   progress_pub_.publish(msg);
   if (log && s.running) {

@@ -70,8 +70,8 @@ GimbalControllerOptions GimbalControllerOptions::load(const ros::NodeHandle& pnh
 std::unique_ptr<GimbalDriver> make_gimbal_driver(const GimbalControllerOptions& options) {
   const GimbalDriverRow* row = find_gimbal_driver(options.driver);
   if (row == nullptr) {
-    throw ParamError("unknown gimbal driver '" + options.driver + "' (known: " +
-                     gimbal_driver_names() + ")");
+    throw ParamError("unknown gimbal driver '" + options.driver +
+                     "' (known: " + gimbal_driver_names() + ")");
   }
   // A gimbal that cannot be brought up (port missing, no reply, alarm at start) keeps the node
   // from starting, with the device's words.

@@ -14,7 +14,8 @@ void ImmediateCallbackQueue::addCallback(const ros::CallbackInterfacePtr& callba
     const auto now = std::chrono::steady_clock::now();
     if (now - last_return_ > kIdleGap) {
       if (on_wake_) on_wake_();
-      if (coalesce_s_ > 0.0) std::this_thread::sleep_for(std::chrono::duration<double>(coalesce_s_));
+      if (coalesce_s_ > 0.0)
+        std::this_thread::sleep_for(std::chrono::duration<double>(coalesce_s_));
     }
   }
   // TryAgain only happens for callbacks that refuse concurrent calls; a subscription queue with

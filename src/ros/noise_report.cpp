@@ -24,7 +24,6 @@
 #include "accel_intrinsics/ros/offline_fit.h"
 #include "accel_intrinsics/ros/scripts.h"
 
-
 namespace accel_intrinsics {
 namespace {
 
@@ -68,7 +67,8 @@ int run(const NoiseReportArguments& args, std::ostream& out, std::ostream& err) 
   if (args.bag.empty() == args.csv.empty()) {
     throw Failure{2, "give exactly one of --bag FILE or --csv SAMPLES.csv"};
   }
-  if (!args.csv.empty() && args.imu_topic_given) throw Failure{2, "--imu-topic applies to --bag only"};
+  if (!args.csv.empty() && args.imu_topic_given)
+    throw Failure{2, "--imu-topic applies to --bag only"};
   std::vector<double> stamps;
   std::vector<Eigen::Vector3d> outputs;
   std::string source;
@@ -100,7 +100,8 @@ int run(const NoiseReportArguments& args, std::ostream& out, std::ostream& err) 
   }
   if (!args.kalibr_out.empty()) {
     kalibr_file.reset(new io::AtomicFile(args.kalibr_out));
-    kalibr_file->stream() << io::kalibr_imu_noise_yaml(noise, source, "/" + std::string(names::kImuTopic));
+    kalibr_file->stream() << io::kalibr_imu_noise_yaml(noise, source,
+                                                       "/" + std::string(names::kImuTopic));
     kalibr_file->close();
   }
   if (!args.plot_out.empty()) {
@@ -139,11 +140,11 @@ int run(const NoiseReportArguments& args, std::ostream& out, std::ostream& err) 
     const core::NoiseParameters& p = noise.axes[a];
     out << "  " << names[a] << ": N " << std::setprecision(4) << p.white_density << " +- "
         << std::setprecision(2) << p.white_density_std << ", B " << std::setprecision(4)
-        << p.bias_instability << " +- " << std::setprecision(2) << p.bias_instability_std
-        << " at " << std::setprecision(4) << p.bias_instability_tau_s << " s"
-        << (p.bias_instability_floor_seen ? "" : " (the longest tau: no floor seen, an upper bound)")
-        << ", K "
-        << p.random_walk << " +- " << std::setprecision(2) << p.random_walk_std << "\n";
+        << p.bias_instability << " +- " << std::setprecision(2) << p.bias_instability_std << " at "
+        << std::setprecision(4) << p.bias_instability_tau_s << " s"
+        << (p.bias_instability_floor_seen ? ""
+                                          : " (the longest tau: no floor seen, an upper bound)")
+        << ", K " << p.random_walk << " +- " << std::setprecision(2) << p.random_walk_std << "\n";
   }
   out << std::flush;
   (void)err;
@@ -184,7 +185,6 @@ void read_samples_csv(const std::string& path, std::vector<double>* stamps,
   }
   if (number == 0) throw std::runtime_error(path + ": empty file (expected the header t,u,v,w)");
 }
-
 
 int run_noise_report(const NoiseReportArguments& args, std::ostream& out, std::ostream& err) {
   try {

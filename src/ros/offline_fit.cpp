@@ -9,26 +9,26 @@
 #include <filesystem>
 #include <iomanip>
 #include <memory>
-#include <ostream>
 #include <optional>
+#include <ostream>
 #include <sstream>
 #include <vector>
 
-#include "accel_intrinsics/core/run/calibrate.h"
-#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/dwells/rest_detection.h"
-#include "accel_intrinsics/core/noise/noise.h"
 #include "accel_intrinsics/core/dwells/samples_file.h"
+#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/fit/tumble.h"
+#include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/io/atomic_file.h"
-#include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/io/budget_file.h"
+#include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/io/residuals_csv.h"
-#include "accel_intrinsics/ros/offline_fit_residuals.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/io/text_report.h"
 #include "accel_intrinsics/ros/bag_input.h"
+#include "accel_intrinsics/ros/offline_fit_residuals.h"
 #include "accel_intrinsics/ros/scripts.h"
 #include "offline_fit_internal.h"
 
@@ -84,17 +84,17 @@ void check_phases(const core::PositionTable& table, core::FitModel model, int mi
   for (core::Phase p : core::kPhases) {
     const int count = counts[core::index(p)];
     if (count > 0 && count < min_positions) {
-      throw Failure{kOfflineFitBadInput,
-                    std::string("too few dwells in phase ") + core::phase_name(p) + ": " +
-                        std::to_string(count) + ", at least " + std::to_string(min_positions) +
-                        " needed (" + tally.str() + ")"};
+      throw Failure{kOfflineFitBadInput, std::string("too few dwells in phase ") +
+                                             core::phase_name(p) + ": " + std::to_string(count) +
+                                             ", at least " + std::to_string(min_positions) +
+                                             " needed (" + tally.str() + ")"};
     }
   }
 }
 
 void check_command_line(const OfflineFitArguments& args) {
-  const int inputs = (args.bags.empty() ? 0 : 1) + (args.csv.empty() ? 0 : 1) +
-                     (args.samples.empty() ? 0 : 1);
+  const int inputs =
+      (args.bags.empty() ? 0 : 1) + (args.csv.empty() ? 0 : 1) + (args.samples.empty() ? 0 : 1);
   if (inputs != 1) {
     throw Failure{kOfflineFitBadCommandLine,
                   "give exactly one of --bag FILE, --csv FILE or --samples FILE"};
@@ -170,8 +170,8 @@ void check_command_line(const OfflineFitArguments& args) {
     }
     for (const std::string& other : outputs) {
       if (!other.empty() && other == path) {
-        throw Failure{kOfflineFitBadCommandLine, "--export " + spec + ": '" + path +
-                                                     "' is already an output of this run"};
+        throw Failure{kOfflineFitBadCommandLine,
+                      "--export " + spec + ": '" + path + "' is already an output of this run"};
       }
     }
     outputs.push_back(path);
@@ -188,17 +188,19 @@ void write_certificate(const std::string& json, const core::PositionTable& table
   const std::string residuals = pdf + ".residuals.tmp." + std::to_string(::getpid());
   io::write_file_atomically(tmp, json);
   io::write_residuals_csv(residuals, table, certificate, certificate);
-  std::vector<std::string> report_args = {"--out", pdf, "--residuals", residuals,
-                                          "--result-name", result_name, tmp};
+  std::vector<std::string> report_args = {
+      "--out", pdf, "--residuals", residuals, "--result-name", result_name, tmp};
   // the device's history page, from the archive this result just went into
-  if (!history_archive.empty()) report_args.insert(report_args.begin(), {"--history-archive", history_archive});
+  if (!history_archive.empty())
+    report_args.insert(report_args.begin(), {"--history-archive", history_archive});
   if (draft) report_args.insert(report_args.begin(), "--draft");
   const int status = run_package_script("certificate_report", report_args);
   std::remove(tmp.c_str());
   std::remove(residuals.c_str());
   if (status == 3) {  // refused; the script named why and how to fix it
-    throw Failure{kOfflineFitBadInput, "--report: no certificate (see above; --draft makes one "
-                                       "marked DRAFT)"};
+    throw Failure{kOfflineFitBadInput,
+                  "--report: no certificate (see above; --draft makes one "
+                  "marked DRAFT)"};
   }
   if (status != 0) {
     throw Failure{kOfflineFitBadInput, "--report: " + package_script("certificate_report") +
@@ -213,16 +215,18 @@ void write_certificate(const std::string& json, const core::PositionTable& table
 // prints it without its password. Returns whether the result is in the archive.
 bool archive_result(const OfflineFitArguments& args, const std::string& json,
                     const core::PositionTable& table, std::ostream& err) {
-  const std::string tmp = (std::filesystem::temp_directory_path() / "offline_fit_archive.").string() +
-                          std::to_string(::getpid());
+  const std::string tmp =
+      (std::filesystem::temp_directory_path() / "offline_fit_archive.").string() +
+      std::to_string(::getpid());
   const bool json_file = !args.json_out.empty() && args.json_out != "-";
   const std::string result_path = json_file ? args.json_out : tmp + ".json";
   const std::string table_path = args.csv_out.empty() ? tmp + ".csv" : args.csv_out;
-  std::vector<std::string> command = {"--archive", args.archive, "add", result_path,
-                                      "--positions", table_path, "--added-by", "offline_fit",
-                                      "--input"};
+  std::vector<std::string> command = {"--archive",  args.archive,  "add",
+                                      result_path,  "--positions", table_path,
+                                      "--added-by", "offline_fit", "--input"};
   const std::string single_input = args.csv.empty() ? args.samples : args.csv;
-  for (const std::string& input : args.bags.empty() ? std::vector<std::string>{single_input} : args.bags)
+  for (const std::string& input :
+       args.bags.empty() ? std::vector<std::string>{single_input} : args.bags)
     command.push_back(input);
   if (!args.device.empty()) command.insert(command.end(), {"--device", args.device});
   if (!args.rig.empty()) command.insert(command.end(), {"--rig", args.rig});
@@ -271,8 +275,8 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
 
   options.output_unit = args.output_unit;
   Input input = !args.samples.empty() ? read_samples_input(args)
-                : args.bags.empty()      ? read_csv_input(args)
-                                         : read_bag_input(args, err);
+                : args.bags.empty()   ? read_csv_input(args)
+                                      : read_bag_input(args, err);
   if (args.unknown_orientations) {
     // The gimbal's dwells as rests of unknown orientation: the same means, no angles.
     input.table = core::forget_orientations(std::move(input.table));
@@ -313,14 +317,14 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   std::string source = args.csv + args.samples;
   for (const std::string& b : args.bags) source += (source.empty() ? "" : ", ") + b;
   io::CalibrationToExport calibration = io::calibration_to_export(
-      report, std::string(kOfflineFitProgram) + " result of " + source +
-                              (args.json_out.empty() || args.json_out == "-" ? ""
-                                                                            : " (" + args.json_out + ")"));
+      report,
+      std::string(kOfflineFitProgram) + " result of " + source +
+          (args.json_out.empty() || args.json_out == "-" ? "" : " (" + args.json_out + ")"));
   std::vector<std::pair<std::string, io::ExportText>> exports;
   // A result that fails the quality gate is not a calibration: nothing for a robot to apply.
   if (!report.quality.pass && !args.exports.empty()) {
-    err << kOfflineFitProgram
-        << ": warning: no --export written: the result fails the quality gate" << std::endl;
+    err << kOfflineFitProgram << ": warning: no --export written: the result fails the quality gate"
+        << std::endl;
   }
   for (const std::string& spec : report.quality.pass ? args.exports : std::vector<std::string>()) {
     const auto parsed = io::parse_export_spec(spec);
@@ -359,14 +363,15 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
   if (json_file) json_file->commit();
   for (auto& f : export_files) f->commit();
   for (const auto& e : exports) {
-    if (!e.second.notice.empty()) err << kOfflineFitProgram << ": note: " << e.second.notice << std::endl;
+    if (!e.second.notice.empty())
+      err << kOfflineFitProgram << ": note: " << e.second.notice << std::endl;
   }
   const bool archived = !args.archive.empty() && archive_result(args, json, input.table, err);
   if (!args.report_pdf.empty())
-    write_certificate(json, input.table, report.certificate, args.report_pdf,
-                      args.json_out.empty() || json_to_stdout ? "(not saved: offline_fit --json)"
-                                                              : args.json_out,
-                      archived ? args.archive : "", args.report_draft);
+    write_certificate(
+        json, input.table, report.certificate, args.report_pdf,
+        args.json_out.empty() || json_to_stdout ? "(not saved: offline_fit --json)" : args.json_out,
+        archived ? args.archive : "", args.report_draft);
 
   io::write_text_report(json_to_stdout ? err : out, report, input.context);
   if (json_to_stdout) out << json << std::flush;
@@ -375,8 +380,8 @@ int run(const OfflineFitArguments& args, std::ostream& out, std::ostream& err) {
         << input.context.warnings.front() << std::endl;
   }
   if (!report.quality.pass) {
-    err << kOfflineFitProgram << ": error: the result fails the quality gate: "
-        << report.quality.summary() << std::endl;
+    err << kOfflineFitProgram
+        << ": error: the result fails the quality gate: " << report.quality.summary() << std::endl;
     return kOfflineFitQualityFailed;
   }
   return kOfflineFitOk;

@@ -16,7 +16,8 @@ bool parse_offline_fit_arguments(const std::vector<std::string>& arguments,
                                  std::ostream& err) {
   CLI::App app{
       "Recalibrates a three-axis accelerometer offline from a recorded bag (read directly, no "
-      "playback), a CSV position table or the raw samples of a hand tumble, and prints the intrinsic parameters with their "
+      "playback), a CSV position table or the raw samples of a hand tumble, and prints the "
+      "intrinsic parameters with their "
       "standard uncertainties."};
   app.name(kOfflineFitProgram);
   app.footer(
@@ -31,12 +32,12 @@ bool parse_offline_fit_arguments(const std::vector<std::string>& arguments,
       ->type_name("FILE|DIR");
   std::string channel_columns;
   for (const core::ChannelSpec& spec : core::kChannels)
-    channel_columns += std::string("; optionally ,") + spec.column + ": dwell " + spec.name +
-                       " in " + spec.unit;
+    channel_columns +=
+        std::string("; optionally ,") + spec.column + ": dwell " + spec.name + " in " + spec.unit;
   app.add_option("--csv", args->csv,
-                 "position table: " + std::string(core::kPositionTableHeader) +
-                     " (optionally" + core::kDirectionColumns +
-                     ": known orientations, phase '-'" + channel_columns + ")");
+                 "position table: " + std::string(core::kPositionTableHeader) + " (optionally" +
+                     core::kDirectionColumns + ": known orientations, phase '-'" + channel_columns +
+                     ")");
   app.add_option("--samples", args->samples,
                  "raw samples of a hand tumble: t,x,y,z a line (seconds, then the three outputs in "
                  "any unit), comma or whitespace, header optional; rests are found in the stream")
@@ -59,14 +60,14 @@ bool parse_offline_fit_arguments(const std::vector<std::string>& arguments,
   core::PerChannel<CLI::Option*> channel_topic;
   for (const core::ChannelSpec& spec : core::kChannels) {
     const std::size_t c = core::channel_index(spec.id);
-    channel_topic[c] = app.add_option(channel_topic_option(c), args->channel_topics[c],
-                                      std::string("DUT ") + spec.name + " topic in the bag (" +
-                                          spec.message_type + ", " + spec.unit +
-                                          "; used when present, required when given)")
-                           ->capture_default_str();
+    channel_topic[c] =
+        app.add_option(channel_topic_option(c), args->channel_topics[c],
+                       std::string("DUT ") + spec.name + " topic in the bag (" + spec.message_type +
+                           ", " + spec.unit + "; used when present, required when given)")
+            ->capture_default_str();
   }
-  auto* gravity = app.add_option("--gravity", args->gravity, "local gravity g in m/s^2")
-                      ->capture_default_str();
+  auto* gravity =
+      app.add_option("--gravity", args->gravity, "local gravity g in m/s^2")->capture_default_str();
   app.add_option("--model", args->model, "fit model: joint or eq4")->capture_default_str();
   app.add_flag("--analyze", args->analyze, "also run the discrepancy analysis (missing effects)");
   app.add_option("--json", args->json_out, "write the result as JSON to this file ('-': stdout)");

@@ -1,7 +1,5 @@
 // accel_intrinsics_fit's inputs: a position table CSV, a samples file (rests detected in the
 // stream), or recorded bags (offline_fit.h).
-#include "accel_intrinsics/ros/offline_fit.h"
-
 #include <unistd.h>
 
 #include <array>
@@ -11,25 +9,26 @@
 #include <filesystem>
 #include <iomanip>
 #include <memory>
-#include <ostream>
 #include <optional>
+#include <ostream>
 #include <sstream>
 #include <vector>
 
-#include "accel_intrinsics/core/run/calibrate.h"
-#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/dwells/rest_detection.h"
-#include "accel_intrinsics/core/noise/noise.h"
 #include "accel_intrinsics/core/dwells/samples_file.h"
+#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/fit/tumble.h"
+#include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/io/atomic_file.h"
-#include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/io/budget_file.h"
+#include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/io/residuals_csv.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/io/text_report.h"
 #include "accel_intrinsics/ros/bag_input.h"
+#include "accel_intrinsics/ros/offline_fit.h"
 #include "accel_intrinsics/ros/scripts.h"
 #include "offline_fit_internal.h"
 
@@ -86,8 +85,8 @@ void rests_from_stream(std::vector<core::ImuSample> samples, const OfflineFitArg
   input->table.time_origin_s = samples.front().stamp_s;
   input->context.rest_detection = found;
   input->context.rest_min_s = args.rest_min_s;
-  // The noise model of the first rest of at least 30 s, when there is one (docs/design.md section 12):
-  // the tumble fit and its analysis are then generalized least squares across the rests.
+  // The noise model of the first rest of at least 30 s, when there is one (docs/design.md section
+  // 12): the tumble fit and its analysis are then generalized least squares across the rests.
   if (core::find_long_rest(input->table)) {
     std::vector<double> stamps;
     std::vector<Eigen::Vector3d> outputs;
@@ -123,8 +122,7 @@ Input read_samples_input(const OfflineFitArguments& args) {
   std::ostringstream summary;
   summary << "samples " << args.samples << " (" << count << " samples, " << std::fixed
           << std::setprecision(1) << input.context.rest_detection->rate_hz << " Hz, " << duration
-          << " s): "
-          << input.table.rows.size() << " rests found, "
+          << " s): " << input.table.rows.size() << " rests found, "
           << input.context.rest_detection->rejected.size() << " spans rejected";
   description.summary = summary.str();
   input.context.input = description;
@@ -246,8 +244,8 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
                   "no gimbal commands on '" + st.command_topic + "' in " + st.path};
   }
   if (tumble && args.unknown_orientations) {
-    throw Failure{kOfflineFitBadInput,
-                  "--unknown-orientations: " + st.path + " has no gimbal commands (a tumble already)"};
+    throw Failure{kOfflineFitBadInput, "--unknown-orientations: " + st.path +
+                                           " has no gimbal commands (a tumble already)"};
   }
   if (st.imu_messages == 0) {
     throw Failure{kOfflineFitBadInput, "no IMU messages on '" + st.imu_topic + "' in " + st.path};
@@ -352,8 +350,8 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
   description.dwells = input.table.rows.size();
   description.bag = bag;
   std::ostringstream summary;
-  summary << (st.files > 1 ? "bags " : "bag ") << st.path << " (" << st.imu_messages << " IMU messages on " << st.imu_topic
-          << ", ";
+  summary << (st.files > 1 ? "bags " : "bag ") << st.path << " (" << st.imu_messages
+          << " IMU messages on " << st.imu_topic << ", ";
   if (tumble)
     summary << "no gimbal commands: a hand tumble, " << input.table.rows.size() << " rests found, ";
   else

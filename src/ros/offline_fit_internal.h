@@ -27,10 +27,10 @@ struct Input {
   io::ResultContext context;  // input description, complete, warnings
   bool from_bag = false;
   core::RawStreams raw;  // bag with --analyze: for the timing-lag estimate
-  // From the run's long rest (docs/design.md section 12: a dwell at least 10 times the median), when
-  // the input has raw samples (a bag): what the fit and the analysis weight the dwells with.
+  // From the run's long rest (docs/design.md section 12: a dwell at least 10 times the median),
+  // when the input has raw samples (a bag): what the fit and the analysis weight the dwells with.
   std::optional<core::NoiseModel> noise_model;
-  std::string read_as;   // how the input was taken, when not obvious (prefixes a fit failure)
+  std::string read_as;  // how the input was taken, when not obvious (prefixes a fit failure)
 };
 
 // offline_fit_input.cpp: the three inputs (a position table CSV, a samples file, bags).

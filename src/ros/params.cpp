@@ -12,12 +12,9 @@ namespace {
 
 double number(const XmlRpc::XmlRpcValue& v, const std::string& what) {
   switch (v.getType()) {
-    case XmlRpc::XmlRpcValue::TypeDouble:
-      return static_cast<double>(v);
-    case XmlRpc::XmlRpcValue::TypeInt:
-      return static_cast<int>(v);
-    default:
-      throw ParamError("parameter " + what + " must be a number");
+    case XmlRpc::XmlRpcValue::TypeDouble: return static_cast<double>(v);
+    case XmlRpc::XmlRpcValue::TypeInt: return static_cast<int>(v);
+    default: throw ParamError("parameter " + what + " must be a number");
   }
 }
 

@@ -10,14 +10,13 @@
 
 namespace accel_intrinsics {
 
-core::RunActions restore_from_checkpoint(io::CheckpointFiles* files,
-                                         const std::string& output_dir, core::CalibrationRun* run,
+core::RunActions restore_from_checkpoint(io::CheckpointFiles* files, const std::string& output_dir,
+                                         core::CalibrationRun* run,
                                          const std::string& resume_param) {
   try {
     const std::optional<io::CheckpointFiles::Restored> restored = files->load();
     if (!restored) {
-      ROS_INFO("calibration: resume: no checkpoint in %s, starting fresh",
-               output_dir.c_str());
+      ROS_INFO("calibration: resume: no checkpoint in %s, starting fresh", output_dir.c_str());
       return {};
     }
     if (restored->dropped_torn_line) {
@@ -26,8 +25,8 @@ core::RunActions restore_from_checkpoint(io::CheckpointFiles* files,
     }
     return run->restore(restored->table, restored->state);
   } catch (const std::exception& e) {
-    throw ParamError("parameter " + resume_param + ": cannot read the checkpoint in " +
-                     output_dir + ": " + e.what());
+    throw ParamError("parameter " + resume_param + ": cannot read the checkpoint in " + output_dir +
+                     ": " + e.what());
   }
 }
 
@@ -86,7 +85,7 @@ void archive_result_file(const std::string& archive, const std::string& device,
                          const std::string& rig, const std::string& result_path,
                          const std::string& table_path) {
   if (archive.empty()) return;
-  std::vector<std::string> args = {"--archive", archive,    "add",      result_path,
+  std::vector<std::string> args = {"--archive",   archive,    "add",        result_path,
                                    "--positions", table_path, "--added-by", "calibration node"};
   if (!device.empty()) args.insert(args.end(), {"--device", device});
   if (!rig.empty()) args.insert(args.end(), {"--rig", rig});

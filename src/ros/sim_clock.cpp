@@ -48,7 +48,8 @@ bool SimClock::on_pause(std_srvs::SetBool::Request& req, std_srvs::SetBool::Resp
     paused_ = false;
   }
   res.success = true;
-  res.message = std::string(paused_ ? "paused" : "running") + " at " + std::to_string(now_s()) + " s";
+  res.message =
+      std::string(paused_ ? "paused" : "running") + " at " + std::to_string(now_s()) + " s";
   ROS_INFO("sim_clock: %s", res.message.c_str());
   return true;
 }
@@ -57,7 +58,8 @@ void SimClock::run() {
   ROS_INFO("sim_clock: /clock from %.1f s at %.2fx real time, %.0f Hz%s", options_.start_s,
            options_.time_scale, options_.rate_hz,
            options_.wall_epoch_s > 0.0 ? " (timeline continued from wall_epoch_s)" : "");
-  wall0_ = options_.wall_epoch_s > 0.0 ? ros::WallTime(options_.wall_epoch_s) : ros::WallTime::now();
+  wall0_ =
+      options_.wall_epoch_s > 0.0 ? ros::WallTime(options_.wall_epoch_s) : ros::WallTime::now();
   ros::WallRate rate(options_.rate_hz);
   while (ros::ok()) {
     ros::spinOnce();  // ~pause

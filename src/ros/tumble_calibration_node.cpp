@@ -54,9 +54,10 @@ TumbleCalibrationNode::TumbleCalibrationNode(ros::NodeHandle nh, ros::NodeHandle
                                           publish_progress();
                                         });
   publish_progress();
-  ROS_INFO("calibration: mode tumble: hold the device still in many orientations (rests of %.1f s "
-           "or more), every axis up and down; progress on %s",
-           options_.session.rests.min_rest_s, nh_.resolveName(kTumbleProgressTopic).c_str());
+  ROS_INFO(
+      "calibration: mode tumble: hold the device still in many orientations (rests of %.1f s "
+      "or more), every axis up and down; progress on %s",
+      options_.session.rests.min_rest_s, nh_.resolveName(kTumbleProgressTopic).c_str());
 }
 
 void TumbleCalibrationNode::handle_imu(const sensor_msgs::Imu& msg) {
@@ -67,8 +68,8 @@ void TumbleCalibrationNode::handle_imu(const sensor_msgs::Imu& msg) {
   ROS_INFO("calibration: %s", p.message.c_str());
   const std::vector<core::DwellRecord>& rests = session_.table().rows;
   for (; rests_published_ < rests.size(); ++rests_published_)
-    dwell_pub_.publish(to_dwell_msg(rests[rests_published_], rests_published_,
-                                    options_.common.frame_id));
+    dwell_pub_.publish(
+        to_dwell_msg(rests[rests_published_], rests_published_, options_.common.frame_id));
   publish_progress();
   if (p.target_reached && !target_fitted_) {
     std::string message;
@@ -142,7 +143,8 @@ bool TumbleCalibrationNode::fit_and_publish(std::string* message) {
   std::ostringstream s;
   s << "tumble fit of " << session_.table().rows.size() << " rests, reduced chi2 "
     << report.certificate.reduced_chi2 << ", g = " << report.certificate.local_gravity << " m/s^2";
-  if (report.coverage && !report.coverage->complete()) s << "; " << report.coverage->missing.front();
+  if (report.coverage && !report.coverage->complete())
+    s << "; " << report.coverage->missing.front();
   if (!report.quality.pass) s << "; FAILS the quality gate: " << report.quality.summary();
   *message = s.str();
   return report.quality.pass;
@@ -160,7 +162,8 @@ bool TumbleCalibrationNode::on_get_intrinsics(GetIntrinsics::Request&,
   return true;
 }
 
-bool TumbleCalibrationNode::on_reset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+bool TumbleCalibrationNode::on_reset(std_srvs::Trigger::Request&,
+                                     std_srvs::Trigger::Response& res) {
   std::lock_guard<std::mutex> lock(mutex_);
   const std::size_t rests = session_.table().rows.size();
   session_.reset();

@@ -1,5 +1,7 @@
 // The gimbal driver table (docs/design.md section 15): every row reads its own parameters through
 // DriverParams (here a map written in the test) and builds its driver; the names are listed.
+#include "accel_intrinsics/drivers/gimbal_driver_table.h"
+
 #include <gtest/gtest.h>
 
 #include <map>
@@ -7,7 +9,6 @@
 #include <string>
 #include <variant>
 
-#include "accel_intrinsics/drivers/gimbal_driver_table.h"
 #include "accel_intrinsics/drivers/ros_joint_gimbal.h"
 
 namespace ai = accel_intrinsics;
@@ -56,7 +57,8 @@ class MapParams : public ai::DriverParams {
     }
     return std::vector<std::string>(out.begin(), out.end());
   }
-  bool get_effects(const std::string&, std::vector<accel_intrinsics::core::Effect>*) const override {
+  bool get_effects(const std::string&,
+                   std::vector<accel_intrinsics::core::Effect>*) const override {
     return false;
   }
 };
@@ -131,8 +133,7 @@ TEST(GimbalDriverTable, RosJointReadsItsParametersAndBuilds) {
     row->read_options(params, defaults);
     FAIL();
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("/gc/ros_joint/phases/z"), std::string::npos)
-        << e.what();
+    EXPECT_NE(std::string(e.what()).find("/gc/ros_joint/phases/z"), std::string::npos) << e.what();
   }
 }
 

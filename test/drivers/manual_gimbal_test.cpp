@@ -2,6 +2,8 @@
 // the protocol (reads the target's stage positions in WAIT_OPERATOR, turns its own two-axis head
 // there, calls continue) with an IMU written here (its own S and offsets, its own Rx Rz); a wrong
 // pose is named (the phase and angle the IMU sees) and waited on, then corrected.
+#include "accel_intrinsics/drivers/manual_gimbal.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,7 +11,6 @@
 #include <string>
 
 #include "accel_intrinsics/core/run/gimbal_protocol.h"
-#include "accel_intrinsics/drivers/manual_gimbal.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
@@ -50,12 +51,12 @@ ai::ManualGimbalOptions options() {
 
 TEST(ManualGimbal, NearestPoseNamesPhaseAndAngle) {
   // eq. (4) directions of each phase come back as that phase and angle.
-  const ai::PoseMatch x = ai::nearest_pose(Eigen::Vector3d(0.0, std::sin(2.0), std::cos(2.0)),
-                                           core::Phase::Y);
+  const ai::PoseMatch x =
+      ai::nearest_pose(Eigen::Vector3d(0.0, std::sin(2.0), std::cos(2.0)), core::Phase::Y);
   EXPECT_EQ(x.phase, core::Phase::X);
   EXPECT_NEAR(x.alpha_rad, 2.0, 1e-12);
-  const ai::PoseMatch z = ai::nearest_pose(Eigen::Vector3d(std::sin(4.0), std::cos(4.0), 0.0),
-                                           core::Phase::X);
+  const ai::PoseMatch z =
+      ai::nearest_pose(Eigen::Vector3d(std::sin(4.0), std::cos(4.0), 0.0), core::Phase::X);
   EXPECT_EQ(z.phase, core::Phase::Z);
   EXPECT_NEAR(z.alpha_rad, 4.0, 1e-12);
   // z up lies in the planes of x and y: the preferred one wins.

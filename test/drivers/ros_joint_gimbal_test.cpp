@@ -2,6 +2,8 @@
 // (each joint a damped second-order motion toward its Float64 command, with overshoot, reporting
 // JointState at 50 Hz) drives it through the protocol; a silent joint and a joint that never
 // arrives are faults that name the joint.
+#include "accel_intrinsics/drivers/ros_joint_gimbal.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -11,7 +13,6 @@
 
 #include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/run/gimbal_protocol.h"
-#include "accel_intrinsics/drivers/ros_joint_gimbal.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;

@@ -13,10 +13,10 @@
 #include <thread>
 
 #include "accel_intrinsics/core/model/constants.h"
-#include "accel_intrinsics/emulators/emulators.h"
 #include "accel_intrinsics/drivers/grbl_driver.h"
 #include "accel_intrinsics/drivers/serial_port.h"
 #include "accel_intrinsics/drivers/smc100_driver.h"
+#include "accel_intrinsics/emulators/emulators.h"
 
 namespace ai = accel_intrinsics;
 using ai::core::Phase;

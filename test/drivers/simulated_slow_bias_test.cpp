@@ -1,5 +1,5 @@
-// The stand's simulated accelerometer with a slow bias (docs/design.md section 12): its parameters are
-// checked as ROS parameters name them, each sample carries the one slow-bias process at its
+// The stand's simulated accelerometer with a slow bias (docs/design.md section 12): its parameters
+// are checked as ROS parameters name them, each sample carries the one slow-bias process at its
 // time, and a random walk's increments have the variance the configured density says.
 #include <gtest/gtest.h>
 
@@ -91,8 +91,7 @@ TEST(SimulatedSlowBias, RandomWalkIncrementsHaveTheConfiguredVariance) {
   double sum_sq = 0.0;
   int n = 0;
   for (std::size_t k = 20; k < samples.size(); k += 20) {
-    const Eigen::Vector3d d =
-        (samples[k].outputs - truth) - (samples[k - 20].outputs - truth);
+    const Eigen::Vector3d d = (samples[k].outputs - truth) - (samples[k - 20].outputs - truth);
     sum_sq += d.squaredNorm();
     n += 3;
   }

@@ -1,6 +1,6 @@
-// The simulated accelerometer's temperature (docs/design.md section 10): readings follow the configured
-// profile from the first gimbal command on, and the temperature effects act on T - reference_c,
-// checked against the docs/design.md terms written out here.
+// The simulated accelerometer's temperature (docs/design.md section 10): readings follow the
+// configured profile from the first gimbal command on, and the temperature effects act on T -
+// reference_c, checked against the docs/design.md terms written out here.
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,6 +1,6 @@
-// The analysis documents of io: the analysis JSON carries the contract keys (docs/design.md section 2),
-// the node's analysis document adds the timing lag and the certificate's model, the residual CSV
-// has one line per residual.
+// The analysis documents of io: the analysis JSON carries the contract keys (docs/design.md section
+// 2), the node's analysis document adds the timing lag and the certificate's model, the residual
+// CSV has one line per residual.
 #include "accel_intrinsics/io/analysis_report.h"
 
 #include <gtest/gtest.h>

@@ -12,12 +12,12 @@
 #include <filesystem>
 #include <fstream>
 
+#include "../support/test_files.h"
 #include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/io/result_document.h"
-#include "../support/test_files.h"
 
 namespace accel_intrinsics {
 namespace {
@@ -65,7 +65,8 @@ TEST(ApplyCalibrationFile, RefusesABadFileNamingIt) {
   std::ofstream(dir.file("other.yaml")) << "answer: 42\n";
   std::ofstream(dir.file("short.yaml")) << "SM: [1, 0, 0, 0, 1, 0]\nbias: [0, 0, 0]\n";
   std::ofstream(dir.file("singular.yaml")) << "SM: [1, 0, 0, 1, 0, 0, 0, 0, 1]\nbias: [0, 0, 0]\n";
-  for (const char* name : {"missing.yaml", "garbage.yaml", "other.yaml", "short.yaml", "singular.yaml"}) {
+  for (const char* name :
+       {"missing.yaml", "garbage.yaml", "other.yaml", "short.yaml", "singular.yaml"}) {
     try {
       io::read_apply_calibration(dir.file(name));
       ADD_FAILURE() << name;

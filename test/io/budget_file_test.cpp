@@ -14,12 +14,12 @@
 #include <string>
 
 #include "../support/random_device.h"
-#include "accel_intrinsics/core/run/calibrate.h"
+#include "../support/source_dir.h"
 #include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/result_document.h"
-#include "../support/source_dir.h"
 
 namespace accel_intrinsics {
 namespace {
@@ -33,8 +33,8 @@ std::string temp_file(const std::string& name, const std::string& text) {
 }
 
 TEST(BudgetFile, ShippedConfigReadsWithItsCertificateBlock) {
-  const io::BudgetFile f =
-      io::read_budget_file(accel_intrinsics::test_support::source_dir() + "/config/uncertainty_budget.yaml");
+  const io::BudgetFile f = io::read_budget_file(accel_intrinsics::test_support::source_dir() +
+                                                "/config/uncertainty_budget.yaml");
   // Cross-check with yaml-cpp directly, so the test does not depend on the values chosen.
   const YAML::Node raw = YAML::LoadFile(f.path);
   EXPECT_EQ(f.spec.gravity_std_rel, raw["gravity_std_rel"].as<double>());

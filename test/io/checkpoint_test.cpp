@@ -12,8 +12,8 @@
 #include <limits>
 #include <sstream>
 
-#include "accel_intrinsics/io/atomic_file.h"
 #include "../support/test_files.h"
+#include "accel_intrinsics/io/atomic_file.h"
 
 namespace accel_intrinsics {
 namespace io {

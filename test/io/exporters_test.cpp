@@ -19,13 +19,13 @@
 #include <sstream>
 #include <string>
 
-#include "accel_intrinsics/core/model/calibration_forms.h"
+#include "../support/test_files.h"
 #include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/model/calibration_forms.h"
 #include "accel_intrinsics/core/noise/noise.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/result_document.h"
-#include "../support/test_files.h"
 
 namespace accel_intrinsics {
 namespace {
@@ -127,8 +127,8 @@ void expect_recovers_force(Apply apply) {
     const Eigen::Vector3d truth = true_force(row, f.g);
     const Eigen::Vector3d tol = 5.0 * corrected_std(f.fit, row);
     for (int i = 0; i < 3; ++i) {
-      EXPECT_NEAR(a(i), truth(i), tol(i)) << "phase " << phase_name(row.phase) << " step "
-                                          << row.step << " component " << i;
+      EXPECT_NEAR(a(i), truth(i), tol(i))
+          << "phase " << phase_name(row.phase) << " step " << row.step << " component " << i;
     }
     ++checked;
   }
@@ -162,7 +162,8 @@ TEST(Exporters, ImuCalibRoundTrip) {
   Eigen::Vector3d bias;
   for (int i = 0; i < 9; ++i) SM(i / 3, i % 3) = node["SM"][i].as<double>();
   for (int i = 0; i < 3; ++i) bias(i) = node["bias"][i].as<double>();
-  expect_recovers_force([&](const Eigen::Vector3d& raw) { return Eigen::Vector3d(SM * raw - bias); });
+  expect_recovers_force(
+      [&](const Eigen::Vector3d& raw) { return Eigen::Vector3d(SM * raw - bias); });
 }
 
 // ---- imucal: FerrarisCalibrationInfo._calibrate_acc: inv(R_a) @ inv(K_a) @ (acc - b_a); the
@@ -188,7 +189,8 @@ TEST(Exporters, ImucalRoundTrip) {
   EXPECT_TRUE(K_a.isDiagonal());
   for (int r = 0; r < 3; ++r) EXPECT_NEAR(R_a.row(r).norm(), 1.0, 1e-12);
   const Eigen::Matrix3d acc_mat = R_a.inverse() * K_a.inverse();
-  expect_recovers_force([&](const Eigen::Vector3d& raw) { return Eigen::Vector3d(acc_mat * (raw - b_a)); });
+  expect_recovers_force(
+      [&](const Eigen::Vector3d& raw) { return Eigen::Vector3d(acc_mat * (raw - b_a)); });
 }
 
 // ---- kalibr: IccScaledMisalignedImu: measured = M * a_i + b, M lower triangular (its design
@@ -208,7 +210,8 @@ TEST(Exporters, KalibrRoundTrip) {
   EXPECT_EQ(M(1, 2), 0.0);
   // kalibr estimates its own bias; the file states ours in a comment, the test takes the fit's.
   const Eigen::Vector3d b = fixture().fit.O;
-  expect_recovers_magnitude([&](const Eigen::Vector3d& raw) { return Eigen::Vector3d(M.inverse() * (raw - b)); });
+  expect_recovers_magnitude(
+      [&](const Eigen::Vector3d& raw) { return Eigen::Vector3d(M.inverse() * (raw - b)); });
 }
 
 // ---- imu_tk: CalibratedTriad_::load reads 9 (T, row-major), 9 (K), 3 (B) numbers with >>;
@@ -230,7 +233,8 @@ TEST(Exporters, ImuTkRoundTrip) {
   EXPECT_EQ(T(2, 0), 0.0);
   EXPECT_EQ(T(2, 1), 0.0);
   EXPECT_TRUE(K.isDiagonal());
-  expect_recovers_magnitude([&](const Eigen::Vector3d& raw) { return Eigen::Vector3d(T * K * (raw - B)); });
+  expect_recovers_magnitude(
+      [&](const Eigen::Vector3d& raw) { return Eigen::Vector3d(T * K * (raw - B)); });
 }
 
 // The leftover error the file states (the number after "at 1 g: ").
@@ -250,7 +254,8 @@ void expect_bounded(Apply apply, double stated) {
   for (const DwellRecord& row : f.test_run.rows) {
     const Eigen::Vector3d err = apply(Eigen::Vector3d(row.mean)) - true_force(row, f.g);
     const double allowance = 5.0 * corrected_std(f.fit, row).norm();
-    EXPECT_LE(err.norm(), stated + allowance) << "phase " << phase_name(row.phase) << " step " << row.step;
+    EXPECT_LE(err.norm(), stated + allowance)
+        << "phase " << phase_name(row.phase) << " step " << row.step;
     largest = std::max(largest, err.norm());
   }
   EXPECT_GT(largest, 0.7 * stated);
@@ -277,13 +282,16 @@ TEST(Exporters, Px4LeftoverBoundsError) {
     params[name] = value;
   }
   ASSERT_EQ(params.size(), 6u);
-  const Eigen::Vector3d off(params.at("CAL_ACC0_XOFF"), params.at("CAL_ACC0_YOFF"), params.at("CAL_ACC0_ZOFF"));
+  const Eigen::Vector3d off(params.at("CAL_ACC0_XOFF"), params.at("CAL_ACC0_YOFF"),
+                            params.at("CAL_ACC0_ZOFF"));
   const Eigen::Vector3d scale(params.at("CAL_ACC0_XSCALE"), params.at("CAL_ACC0_YSCALE"),
                               params.at("CAL_ACC0_ZSCALE"));
   const double stated = stated_leftover(text);
   EXPECT_NEAR(stated, t.leftover_error, 1e-3 * t.leftover_error);
   EXPECT_NE(t.notice.find("largest error"), std::string::npos);
-  expect_bounded([&](const Eigen::Vector3d& raw) { return Eigen::Vector3d((raw - off).cwiseProduct(scale)); }, stated);
+  expect_bounded(
+      [&](const Eigen::Vector3d& raw) { return Eigen::Vector3d((raw - off).cwiseProduct(scale)); },
+      stated);
 }
 
 // ---- ardupilot: AP_InertialSensor_Backend::_rotate_and_correct_accel: accel -= offset, then
@@ -303,14 +311,18 @@ TEST(Exporters, ArdupilotLeftoverBoundsError) {
     params[line.substr(0, comma)] = std::stod(line.substr(comma + 1));
   }
   ASSERT_EQ(params.size(), 6u);
-  const Eigen::Vector3d offs(params.at("INS_ACCOFFS_X"), params.at("INS_ACCOFFS_Y"), params.at("INS_ACCOFFS_Z"));
-  const Eigen::Vector3d scal(params.at("INS_ACCSCAL_X"), params.at("INS_ACCSCAL_Y"), params.at("INS_ACCSCAL_Z"));
+  const Eigen::Vector3d offs(params.at("INS_ACCOFFS_X"), params.at("INS_ACCOFFS_Y"),
+                             params.at("INS_ACCOFFS_Z"));
+  const Eigen::Vector3d scal(params.at("INS_ACCSCAL_X"), params.at("INS_ACCSCAL_Y"),
+                             params.at("INS_ACCSCAL_Z"));
   const double stated = stated_leftover(text);
   EXPECT_GT(stated, 0.1);  // this device's couplings are large enough to matter
-  expect_bounded([&](const Eigen::Vector3d& raw) {
-    Eigen::Vector3d a = raw - offs;
-    return Eigen::Vector3d(a.cwiseProduct(scal));
-  }, stated);
+  expect_bounded(
+      [&](const Eigen::Vector3d& raw) {
+        Eigen::Vector3d a = raw - offs;
+        return Eigen::Vector3d(a.cwiseProduct(scal));
+      },
+      stated);
 }
 
 // px4 and ardupilot SCALE from the diagonal written out here: SCALE_i = S_ii / |s_i|^2 with s_i
@@ -392,7 +404,8 @@ TEST(Exporters, DiagonalBoundIsWorstOverSphere) {
   for (int i = 0; i <= 180; ++i) {
     for (int k = 0; k < 360; ++k) {
       const double th = kPi * i / 180.0, ph = 2.0 * kPi * k / 360.0;
-      const Eigen::Vector3d a(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th));
+      const Eigen::Vector3d a(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph),
+                              std::cos(th));
       worst = std::max(worst, (E * a).norm());
     }
   }
@@ -431,7 +444,8 @@ TEST(Exporters, FromStoredResultFile) {
   EXPECT_TRUE(stored.noise_density.isApprox(report.noise->density, 1e-12));
   EXPECT_NEAR(stored.sample_rate_hz, report.noise->rate_hz, 1e-9);
   const YAML::Node imu0 = YAML::Load(io::export_text(io::ExportFormat::Kalibr, c).text)["imu0"];
-  EXPECT_DOUBLE_EQ(imu0["accelerometer_noise_density"].as<double>(), report.noise->density.maxCoeff());
+  EXPECT_DOUBLE_EQ(imu0["accelerometer_noise_density"].as<double>(),
+                   report.noise->density.maxCoeff());
   EXPECT_NEAR(imu0["update_rate"].as<double>(), report.noise->rate_hz, 1e-9);
 }
 
@@ -448,9 +462,9 @@ TEST(Exporters, RefuseAResultThatFailsTheQualityGate) {
   EXPECT_FALSE(stored.quality_pass);
   for (const io::CalibrationToExport& c :
        {io::calibration_to_export(report, "report"), io::calibration_to_export(stored, result)}) {
-    for (io::ExportFormat format : {io::ExportFormat::ImuCalib, io::ExportFormat::Imucal,
-                                    io::ExportFormat::Kalibr, io::ExportFormat::ImuTk,
-                                    io::ExportFormat::Px4, io::ExportFormat::Ardupilot}) {
+    for (io::ExportFormat format :
+         {io::ExportFormat::ImuCalib, io::ExportFormat::Imucal, io::ExportFormat::Kalibr,
+          io::ExportFormat::ImuTk, io::ExportFormat::Px4, io::ExportFormat::Ardupilot}) {
       try {
         io::export_text(format, c);
         ADD_FAILURE() << io::export_format_name(format) << " exported a failing result";
@@ -464,7 +478,8 @@ TEST(Exporters, RefuseAResultThatFailsTheQualityGate) {
   }
   // The same result once it passes (the gate's verdict is the only difference) exports.
   report.quality = Quality{};
-  EXPECT_NO_THROW(io::export_text(io::ExportFormat::ImuCalib, io::calibration_to_export(report, "r")));
+  EXPECT_NO_THROW(
+      io::export_text(io::ExportFormat::ImuCalib, io::calibration_to_export(report, "r")));
 }
 
 TEST(Exporters, BadInputIsOneClearLine) {

@@ -75,12 +75,14 @@ const core::StaticRecordNoise& record() {
 }
 
 TEST(NoiseDocument, KalibrKeysAreTheLargestWhiteNoiseAndRandomWalk) {
-  const YAML::Node k = YAML::Load(io::kalibr_imu_noise_yaml(record(), "simulated", "/imu/data_raw"));
+  const YAML::Node k =
+      YAML::Load(io::kalibr_imu_noise_yaml(record(), "simulated", "/imu/data_raw"));
   // N: the largest is v's 0.003 (u's and w's 0.002 are 33 % below): within 5 %.
   EXPECT_NEAR(k["accelerometer_noise_density"].as<double>(), kWhite.maxCoeff(),
               0.05 * kWhite.maxCoeff());
   // K: the largest is w's 2e-4 (u's 1e-4 is half of it; u's B, 1.5e-3, is 7.5 times it).
-  EXPECT_NEAR(k["accelerometer_random_walk"].as<double>(), kWalk.maxCoeff(), 0.3 * kWalk.maxCoeff());
+  EXPECT_NEAR(k["accelerometer_random_walk"].as<double>(), kWalk.maxCoeff(),
+              0.3 * kWalk.maxCoeff());
   EXPECT_NEAR(k["update_rate"].as<double>(), kRate, 1e-6);
   EXPECT_EQ(k["rostopic"].as<std::string>(), "/imu/data_raw");
 }

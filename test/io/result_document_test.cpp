@@ -15,11 +15,11 @@
 #include <sstream>
 #include <string>
 
+#include "../support/test_files.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/text_report.h"
-#include "../support/test_files.h"
 
 namespace accel_intrinsics {
 namespace {

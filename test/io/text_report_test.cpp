@@ -13,8 +13,8 @@
 #include <string>
 #include <utility>
 
-#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace accel_intrinsics {

@@ -3,8 +3,8 @@
 #include <std_srvs/Trigger.h>
 #include <yaml-cpp/yaml.h>
 
-#include "stand_checks.h"
 #include "run_dirs.h"
+#include "stand_checks.h"
 
 TEST(AnalysisNode, NamesTheHiddenEffectAndTheCertificateSaysWhichModel) {
   ros::NodeHandle pnh("~");

@@ -66,7 +66,8 @@ struct Received {
 
 // The command that starts the apply node (or nodelet) named `name` on `file`.
 std::string start_command(const std::string& name, const std::string& file) {
-  const std::string args = " __name:=" + name + " _calibration_file:=" + file + " _queue_size:=5000";
+  const std::string args =
+      " __name:=" + name + " _calibration_file:=" + file + " _queue_size:=5000";
   return kStartAsNodelet
              ? "rosrun nodelet nodelet standalone accel_intrinsics/ApplyCalibrationNodelet" + args
              : "rosrun accel_intrinsics apply_calibration" + args;
@@ -162,11 +163,13 @@ TEST(ApplyCalibration, CorrectedDwellMeansEqualTheTrueForce) {
     for (const sensor_msgs::Imu& m : received.messages) {
       const double t = m.header.stamp.toSec();
       if (t < t0 || t >= t1) continue;
-      const Eigen::Vector3d a(m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z);
+      const Eigen::Vector3d a(m.linear_acceleration.x, m.linear_acceleration.y,
+                              m.linear_acceleration.z);
       values.push_back(a);
       sum += a;
       for (int i = 0; i < 9; ++i) {
-        EXPECT_NEAR(m.linear_acceleration_covariance[i], stated(i / 3, i % 3), 1e-15) << "covariance filled";
+        EXPECT_NEAR(m.linear_acceleration_covariance[i], stated(i / 3, i % 3), 1e-15)
+            << "covariance filled";
       }
       ++k;
     }
@@ -189,7 +192,8 @@ TEST(ApplyCalibration, CorrectedDwellMeansEqualTheTrueForce) {
       EXPECT_NEAR(mean(i), truth(i), sigmas * std::sqrt(cov(i, i)))
           << "phase " << core::phase_name(e.phase) << " step " << e.step << " component " << i;
       // The stated covariance describes the published scatter.
-      EXPECT_NEAR(std::sqrt(scatter(i, i)), std::sqrt(stated(i, i)), 0.25 * std::sqrt(stated(i, i)));
+      EXPECT_NEAR(std::sqrt(scatter(i, i)), std::sqrt(stated(i, i)),
+                  0.25 * std::sqrt(stated(i, i)));
     }
     // Without the correction this dwell would be far off (the test can fail).
     if (((raw_sum / k) - truth).norm() > 20.0 * std::sqrt(cov.trace())) ++raw_far;

@@ -21,8 +21,8 @@
 #include "accel_intrinsics/GetIntrinsics.h"
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/core/model/protocol.h"
-#include "wait_for.h"
 #include "run_dirs.h"
+#include "wait_for.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
@@ -240,8 +240,9 @@ TEST_F(CalibrationNodeTest, AssignsDwellsByStampFitsAndResets) {
           if (clock < 95.0) set_clock(clock += 0.1);
           return status()["commands_rejected"] == "2" && imu_received() == samples_sent_;
         },
-        30.0, "every message sent to reach the node (commands_rejected 2, IMU messages received " +
-                  std::to_string(samples_sent_) + ")"))
+        30.0,
+        "every message sent to reach the node (commands_rejected 2, IMU messages received " +
+            std::to_string(samples_sent_) + ")"))
         << "commands_rejected " << status()["commands_rejected"] << ", IMU received "
         << imu_received();
   }
@@ -415,7 +416,8 @@ TEST_F(CalibrationNodeTest, AResultFailingTheQualityGateIsNoCalibration) {
   EXPECT_EQ(st["state"], "RESULT");
   EXPECT_NE(st["(message)"].find("result fails the quality gate"), std::string::npos)
       << st["(message)"];
-  EXPECT_EQ(st["(level)"], std::to_string(static_cast<int>(diagnostic_msgs::DiagnosticStatus::ERROR)));
+  EXPECT_EQ(st["(level)"],
+            std::to_string(static_cast<int>(diagnostic_msgs::DiagnosticStatus::ERROR)));
   ASSERT_TRUE(reset_.call(reset));
 }
 
@@ -424,7 +426,8 @@ TEST(NodeParams, RefuseToStartNamingTheParameter) {
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"calibration __name:=bad_calibration _local_gravity:=3.0", "/bad_calibration/local_gravity"},
       {"calibration __name:=bad_model _model:=quadratic", "/bad_model/model"},
-      {"calibration __name:=bad_exports _output_dir:=/tmp _exports:=[matlab]", "/bad_exports/exports"},
+      {"calibration __name:=bad_exports _output_dir:=/tmp _exports:=[matlab]",
+       "/bad_exports/exports"},
       {"gimbal_controller __name:=bad_gimbal _steps:=2", "/bad_gimbal/steps"},
       {"gimbal_controller __name:=bad_dwell _dwell_s:=-1.0", "/bad_dwell/dwell_s"},
       {"accelerometer __name:=bad_rate _rate_hz:=-5.0", "/bad_rate/rate_hz"},

@@ -1,8 +1,8 @@
 // calibration_nodelet.test: end_to_end's checks on a stand whose calibration node is a nodelet in
 // a nodelet manager (accel_intrinsics/CalibrationNodelet loaded into /imu_manager).
-#include "end_to_end.cpp"
-
 #include <xmlrpcpp/XmlRpcValue.h>
+
+#include "end_to_end.cpp"
 
 // Runs after EndToEnd (definition order): the calibration topics come from the manager's process.
 TEST(CalibrationNodelet, RunsInsideTheManager) {

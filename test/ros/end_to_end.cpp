@@ -31,8 +31,8 @@ void on_diagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) {
 }
 }  // namespace
 
-#include "stand_checks.h"
 #include "run_dirs.h"
+#include "stand_checks.h"
 
 TEST(EndToEnd, SuperviseThenServiceMatchTruth) {
   ros::NodeHandle pnh("~");

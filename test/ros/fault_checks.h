@@ -14,8 +14,8 @@
 #include <set>
 
 #include "accel_intrinsics/core/dwells/position_table.h"
-#include "stand_checks.h"
 #include "run_dirs.h"
+#include "stand_checks.h"
 
 namespace fault_checks {
 
@@ -23,8 +23,8 @@ class StatusWatcher {
  public:
   explicit StatusWatcher(ros::NodeHandle& nh) {
     status_sub_ = nh.subscribe("/calibration/status", 10, &StatusWatcher::on_status, this);
-    progress_sub_ = nh.subscribe("/gimbal_controller/progress", 10, &StatusWatcher::on_progress,
-                                 this);
+    progress_sub_ =
+        nh.subscribe("/gimbal_controller/progress", 10, &StatusWatcher::on_progress, this);
   }
   std::string status(const std::string& key) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -106,7 +106,8 @@ inline void check_case() {
   } else {
     // Every position once, in protocol order; the retried ones measured again.
     const accel_intrinsics::core::PositionTable table =
-        accel_intrinsics::core::read_position_table_file(run_dirs::latest(output_dir) + "/position_table.csv");
+        accel_intrinsics::core::read_position_table_file(run_dirs::latest(output_dir) +
+                                                         "/position_table.csv");
     ASSERT_EQ(table.rows.size(), static_cast<std::size_t>(3 * steps));
     for (std::size_t i = 0; i < table.rows.size(); ++i) {
       EXPECT_EQ(accel_intrinsics::core::index(table.rows[i].phase), static_cast<int>(i) / steps);

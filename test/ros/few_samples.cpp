@@ -1,7 +1,9 @@
 // Fault injection: see test/ros/few_samples.test and fault_checks.h.
 #include "fault_checks.h"
 
-TEST(FaultInjection, few_samples) { fault_checks::check_case(); }
+TEST(FaultInjection, few_samples) {
+  fault_checks::check_case();
+}
 
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);

@@ -6,8 +6,8 @@
 #include <map>
 #include <mutex>
 
-#include "stand_checks.h"
 #include "run_dirs.h"
+#include "stand_checks.h"
 
 namespace {
 std::mutex mutex;
@@ -16,7 +16,8 @@ void on_diagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex);
   for (const auto& status : msg->status) {
     for (const auto& kv : status.values) {
-      if (kv.key == "rate_hz") max_rate[status.name] = std::max(max_rate[status.name], std::stod(kv.value));
+      if (kv.key == "rate_hz")
+        max_rate[status.name] = std::max(max_rate[status.name], std::stod(kv.value));
     }
   }
 }
@@ -39,8 +40,8 @@ TEST(FleetSim, EightRigsAtOneKilohertzAllMatchTheirTruth) {
   for (const std::string& ns : namespaces) {
     ASSERT_TRUE(ros::service::waitForService(
         stand_checks::join_ns(ns, "calibration/get_intrinsics"), ros::Duration(120.0)));
-    ASSERT_TRUE(ros::service::waitForService(
-        stand_checks::join_ns(ns, "gimbal_controller/start"), ros::Duration(120.0)));
+    ASSERT_TRUE(ros::service::waitForService(stand_checks::join_ns(ns, "gimbal_controller/start"),
+                                             ros::Duration(120.0)));
   }
   const auto t0 = std::chrono::steady_clock::now();
   stand_checks::supervise_and_check(namespaces, limits, timeout_s, output_dir + "/supervise.json");
@@ -54,8 +55,10 @@ TEST(FleetSim, EightRigsAtOneKilohertzAllMatchTheirTruth) {
     const accel_intrinsics::GetIntrinsics::Response res = stand_checks::get_intrinsics(ns);
     ASSERT_TRUE(res.success) << ns << ": " << res.message;
     stand_checks::expect_matches_truth(res.result, truth, limits, ns);
-    for (int p = 0; p < 3; ++p) EXPECT_EQ(res.result.positions[p], static_cast<unsigned>(steps)) << ns;
-    EXPECT_EQ(stand_checks::count_csv_rows(run_dirs::latest(output_dir + "/" + ns) + "/position_table.csv"),
+    for (int p = 0; p < 3; ++p)
+      EXPECT_EQ(res.result.positions[p], static_cast<unsigned>(steps)) << ns;
+    EXPECT_EQ(stand_checks::count_csv_rows(run_dirs::latest(output_dir + "/" + ns) +
+                                           "/position_table.csv"),
               static_cast<std::size_t>(3 * steps))
         << ns;
     // Each calibration node saw the full rate (sensor time).

@@ -74,7 +74,8 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
   ASSERT_TRUE(pnh.getParam("output_dir", output_dir));
   const int kill_phase_index = kill_phase == "x" ? 0 : kill_phase == "y" ? 1 : 2;
   const int kill_position = kill_phase_index * steps + kill_step;  // 0-based, protocol order
-  ros::Subscriber s = nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status);
+  ros::Subscriber s =
+      nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status);
   ros::Subscriber c = nh.subscribe("/gimbal/command", 1000, on_cmd);
   ros::Subscriber i = nh.subscribe("/imu/data_raw", 100000, on_imu);
   stand_checks::reset_and_start();
@@ -86,13 +87,15 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
   if (HasFatalFailure()) return;
   const std::size_t commands_at_kill = commands_seen();
   // The checkpoint as the killed node leaves it: the run continues after its last row.
-  const std::size_t rows_at_kill = checkpoint_rows(run_dirs::latest(output_dir) + "/position_table.csv");
+  const std::size_t rows_at_kill =
+      checkpoint_rows(run_dirs::latest(output_dir) + "/position_table.csv");
   ASSERT_LT(rows_at_kill, static_cast<std::size_t>(kill_position)) << "the cut dwell is not in it";
   const int pid = test_wait::node_pid("/calibration");
   ASSERT_GT(pid, 1);
   ASSERT_EQ(kill(pid, SIGKILL), 0);
-  std::printf("killed /calibration (pid %d) in the dwell of phase %s step %d; checkpoint: %zu rows\n",
-              pid, kill_phase.c_str(), kill_step, rows_at_kill);
+  std::printf(
+      "killed /calibration (pid %d) in the dwell of phase %s step %d; checkpoint: %zu rows\n", pid,
+      kill_phase.c_str(), kill_step, rows_at_kill);
 
   // Respawned (clock still held): its services are up once it has reloaded the checkpoint; then
   // its subscription to the gimbal commands, connected before the clock runs on.
@@ -101,7 +104,8 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
     const int now_pid = test_wait::node_pid("/calibration");
     back = now_pid > 1 && now_pid != pid &&
            ros::service::exists("/calibration/get_intrinsics", false) &&
-           subscribes("/calibration", "/gimbal/command") && subscribes("/calibration", "/imu/data_raw");
+           subscribes("/calibration", "/gimbal/command") &&
+           subscribes("/calibration", "/imu/data_raw");
     if (!back) ros::WallDuration(0.1).sleep();
   }
   ASSERT_TRUE(back) << "/calibration did not come back";
@@ -156,7 +160,8 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
       << "the rewound protocol does not start after the checkpoint's last row";
 
   // The table: every position once, in order, each a complete dwell of the rewound protocol.
-  core::PositionTable table = core::read_position_table_file(run_dirs::latest(output_dir) + "/position_table.csv");
+  core::PositionTable table =
+      core::read_position_table_file(run_dirs::latest(output_dir) + "/position_table.csv");
   ASSERT_EQ(table.rows.size(), static_cast<std::size_t>(3 * steps));
   for (std::size_t r = 0; r < table.rows.size(); ++r) {
     const core::DwellRecord& row = table.rows[r];
@@ -171,7 +176,8 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
     ASSERT_LT(k + 1, cmds.size()) << "row " << r << ": no SETTLED at its t_start";
     EXPECT_EQ(core::index(row.phase), cmds[k].phase) << "row " << r;
     EXPECT_EQ(row.step, cmds[k].step) << "row " << r;
-    EXPECT_EQ(row.t_end_s, cmds[k + 1].header.stamp.toSec()) << "row " << r << ": not a whole dwell";
+    EXPECT_EQ(row.t_end_s, cmds[k + 1].header.stamp.toSec())
+        << "row " << r << ": not a whole dwell";
     if (r >= rows_at_kill) {
       EXPECT_GT(k, commands_at_kill) << "row " << r << " was measured before the kill";
     } else {

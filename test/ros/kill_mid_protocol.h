@@ -15,11 +15,11 @@
 #include <set>
 
 #include "accel_intrinsics/GimbalCommand.h"
-#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "run_dirs.h"
 #include "stand_checks.h"
 #include "wait_for.h"
-#include "run_dirs.h"
 
 namespace {
 std::mutex mutex;
@@ -41,7 +41,8 @@ void on_command(const accel_intrinsics::GimbalCommand::ConstPtr& msg) {
 bool settled_at(int position, int steps) {
   std::lock_guard<std::mutex> lock(mutex);
   return have_command && last_command.state == accel_intrinsics::GimbalCommand::SETTLED &&
-         static_cast<int>(last_command.phase) * steps + static_cast<int>(last_command.step) == position;
+         static_cast<int>(last_command.phase) * steps + static_cast<int>(last_command.step) ==
+             position;
 }
 // Holds or releases the simulated clock (sim_clock ~pause); *at_s: the clock's time then (its
 // answer: "paused at 123.456000 s").
@@ -72,9 +73,9 @@ inline void hold_clock_in_dwell(int position, int steps, const ros::WallTime& de
   ASSERT_TRUE(pause_clock(true, &held_s));
   // The clock messages in flight have arrived once this process's clock reads the held time
   // (sim_clock publishes that time again and again while paused; 1e-6: the answer's digits).
-  ASSERT_TRUE(test_wait::wait_for([&] { return ros::Time::now().toSec() >= held_s - 1e-6; }, 30.0,
-                                  "the test's clock to reach the held " + std::to_string(held_s) +
-                                      " s"));
+  ASSERT_TRUE(
+      test_wait::wait_for([&] { return ros::Time::now().toSec() >= held_s - 1e-6; }, 30.0,
+                          "the test's clock to reach the held " + std::to_string(held_s) + " s"));
   ASSERT_TRUE(settled_at(position, steps)) << "the clock did not stop in the dwell";
   double settled_s = 0.0;
   {
@@ -100,8 +101,10 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   pnh.getParam("hold_clock", hold_clock);
   pnh.getParam("expected_dwells_discarded", expected_discarded);
   ASSERT_TRUE(pnh.getParam("output_dir", output_dir));
-  ros::Subscriber p = nh.subscribe("/gimbal_controller/progress", 10, &test_wait::LatestValues::on_message, &progress);
-  ros::Subscriber s = nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status);
+  ros::Subscriber p = nh.subscribe("/gimbal_controller/progress", 10,
+                                   &test_wait::LatestValues::on_message, &progress);
+  ros::Subscriber s =
+      nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status);
   ros::Subscriber c = nh.subscribe("/gimbal/command", 100, on_command);
   stand_checks::reset_and_start();
   if (::testing::Test::HasFatalFailure()) return;
@@ -126,8 +129,8 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   ASSERT_GT(pid, 1);
   ASSERT_EQ(kill(pid, SIGKILL), 0);
   std::printf("killed %s (pid %d) at position %s (phase %s step %s)%s\n", victim.c_str(), pid,
-              progress("position").c_str(), progress("phase").c_str(),
-              progress("step").c_str(), hold_clock ? ", clock held in its dwell" : "");
+              progress("position").c_str(), progress("phase").c_str(), progress("step").c_str(),
+              hold_clock ? ", clock held in its dwell" : "");
   if (hold_clock) {
     const std::uint64_t progress_before = progress.messages();
     bool back = false;
@@ -186,7 +189,8 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
 
   // The checkpoint: every position once, in protocol order, and the run's time origin.
   namespace core = accel_intrinsics::core;
-  core::PositionTable table = core::read_position_table_file(run_dirs::latest(output_dir) + "/position_table.csv");
+  core::PositionTable table =
+      core::read_position_table_file(run_dirs::latest(output_dir) + "/position_table.csv");
   ASSERT_EQ(table.rows.size(), static_cast<std::size_t>(3 * steps));
   for (std::size_t i = 0; i < table.rows.size(); ++i) {
     EXPECT_EQ(core::index(table.rows[i].phase), static_cast<int>(i) / steps) << "row " << i;

@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "accel_intrinsics/core/dwells/position_table.h"
-#include "stand_checks.h"
 #include "run_dirs.h"
+#include "stand_checks.h"
 
 namespace {
 std::mutex readings_mutex;
@@ -64,7 +64,8 @@ TEST(LiveTemperature, EachDwellRecordsTheMeanOfItsReadings) {
   stand_checks::supervise_and_check({""}, limits, timeout_s, output_dir + "/supervise.json");
 
   const accel_intrinsics::core::PositionTable table =
-      accel_intrinsics::core::read_position_table_file(run_dirs::latest(output_dir) + "/position_table.csv");
+      accel_intrinsics::core::read_position_table_file(run_dirs::latest(output_dir) +
+                                                       "/position_table.csv");
   ASSERT_EQ(table.rows.size(), static_cast<std::size_t>(3 * steps));
   std::lock_guard<std::mutex> lock(readings_mutex);
   ASSERT_GT(readings.size(), 20u);

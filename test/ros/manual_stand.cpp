@@ -53,8 +53,8 @@ class Head {
         Y = y_deg_ * kDeg;
       }
       // f = (Rx(X) Rz(Y))^T (0, 0, g).
-      const double f[3] = {9.80665 * std::sin(X) * std::sin(Y),
-                           9.80665 * std::sin(X) * std::cos(Y), 9.80665 * std::cos(X)};
+      const double f[3] = {9.80665 * std::sin(X) * std::sin(Y), 9.80665 * std::sin(X) * std::cos(Y),
+                           9.80665 * std::cos(X)};
       double r[3];
       for (int s = 0; s < 3; ++s) {
         r[s] = kO[s] + noise(rng);
@@ -98,8 +98,7 @@ TEST(ManualStand, OperatorRunWithAWrongPoseNamedThenCorrected) {
   ros::NodeHandle nh;
   Head head;
   Progress progress;
-  ros::Subscriber sub =
-      nh.subscribe("gimbal_controller/progress", 10, &Progress::on, &progress);
+  ros::Subscriber sub = nh.subscribe("gimbal_controller/progress", 10, &Progress::on, &progress);
   std::atomic<int> settled{0};
   ros::Subscriber commands = nh.subscribe<accel_intrinsics::GimbalCommand>(
       "gimbal/command", 100, [&](const accel_intrinsics::GimbalCommand::ConstPtr& m) {

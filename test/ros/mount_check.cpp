@@ -120,16 +120,17 @@ TEST(MountCheck, EachMistakeNamed) {
     const stand_checks::CommandResult r = check("--imu-topic /imu_test");
     EXPECT_EQ(r.exit_code, 4) << r.output;
     for (const char* name : c.names) {
-      if (name) EXPECT_NE(r.output.find(name), std::string::npos) << name << " not in:\n" << r.output;
+      if (name)
+        EXPECT_NE(r.output.find(name), std::string::npos) << name << " not in:\n" << r.output;
     }
     EXPECT_NE(r.output.find("fix:"), std::string::npos) << r.output;
   }
 }
 
 TEST(MountCheck, NoGimbalCouldNotRun) {
-  const stand_checks::CommandResult r =
-      stand_checks::run("rosrun accel_intrinsics supervise --check-mount --service-timeout 1 "
-                        "nowhere");
+  const stand_checks::CommandResult r = stand_checks::run(
+      "rosrun accel_intrinsics supervise --check-mount --service-timeout 1 "
+      "nowhere");
   EXPECT_EQ(r.exit_code, 1) << r.output;
 }
 

@@ -1,7 +1,9 @@
 // Fault injection: see test/ros/never_settle.test and fault_checks.h.
 #include "fault_checks.h"
 
-TEST(FaultInjection, never_settle) { fault_checks::check_case(); }
+TEST(FaultInjection, never_settle) {
+  fault_checks::check_case();
+}
 
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);

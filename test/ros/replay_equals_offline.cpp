@@ -112,7 +112,8 @@ TEST(ReplayEqualsOffline, RecordedRunRefitsToTheOnlineResult) {
 
   // The dwells themselves: the node's checkpoint file and offline_fit's table, byte for byte.
   if (!online_dir.empty()) {
-    const std::string online_csv = oc::read_file(run_dirs::latest(online_dir) + "/position_table.csv");
+    const std::string online_csv =
+        oc::read_file(run_dirs::latest(online_dir) + "/position_table.csv");
     ASSERT_FALSE(online_csv.empty());
     EXPECT_EQ(online_csv, oc::read_file(csv_path));
   }

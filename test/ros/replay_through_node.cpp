@@ -11,16 +11,16 @@
 #include <unistd.h>
 
 #include <cerrno>
-#include <cstdlib>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <string>
 
+#include "../support/bag_writer.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/ros/conversions.h"
-#include "../support/bag_writer.h"
 #include "offline_compare.h"
 
 namespace ai = accel_intrinsics;
@@ -85,7 +85,8 @@ TEST(ReplayThroughNode, ReplayLaunchGivesOfflineResult) {
   if (!pnh.getParam("bag", bag)) {
     // A directory of this run's own: parallel or repeated runs never share a bag.
     const char* tmp = std::getenv("TMPDIR");
-    std::string templ = std::string(tmp && *tmp ? tmp : "/tmp") + "/accel_intrinsics_replay_through_node_XXXXXX";
+    std::string templ =
+        std::string(tmp && *tmp ? tmp : "/tmp") + "/accel_intrinsics_replay_through_node_XXXXXX";
     ASSERT_NE(::mkdtemp(&templ[0]), nullptr) << templ << ": " << std::strerror(errno);
     temp_dir = templ;
     bag = temp_dir + "/run.bag";
@@ -112,8 +113,8 @@ TEST(ReplayThroughNode, ReplayLaunchGivesOfflineResult) {
     const std::string bag_arg = "bag:=" + bag;
     const std::string rate_arg = "rate:=" + std::to_string(rate);
     const std::string window_arg = "reorder_window_s:=" + std::to_string(window_s);
-    ::execlp("roslaunch", "roslaunch", "accel_intrinsics", "replay.launch", bag_arg.c_str(), rate_arg.c_str(),
-             window_arg.c_str(), "output:=log", static_cast<char*>(nullptr));
+    ::execlp("roslaunch", "roslaunch", "accel_intrinsics", "replay.launch", bag_arg.c_str(),
+             rate_arg.c_str(), window_arg.c_str(), "output:=log", static_cast<char*>(nullptr));
     ::_exit(127);
   }
   accel_intrinsics::IntrinsicResult online;
@@ -121,7 +122,8 @@ TEST(ReplayThroughNode, ReplayLaunchGivesOfflineResult) {
   const bool ok = oc::wait_for_result("/calibration/get_intrinsics", timeout_s, &online, &message);
   ::kill(-child, SIGINT);
   int status = 0;
-  for (int i = 0; i < 100 && ::waitpid(child, &status, WNOHANG) == 0; ++i) ros::WallDuration(0.1).sleep();
+  for (int i = 0; i < 100 && ::waitpid(child, &status, WNOHANG) == 0; ++i)
+    ros::WallDuration(0.1).sleep();
   if (::waitpid(child, &status, WNOHANG) == 0) {
     ::kill(-child, SIGKILL);
     ::waitpid(child, &status, 0);

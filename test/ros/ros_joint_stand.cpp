@@ -153,15 +153,17 @@ TEST(RosJointStand, FullRunMatchesTheTestsTruthThenASilentJointIsNamed) {
   ASSERT_TRUE(test_wait::wait_for([&] { return progress("state") == "DONE"; }, timeout_s,
                                   "the controller's DONE"))
       << progress.message();
-  ASSERT_TRUE(test_wait::wait_for([&] { return have_result.load(); }, 20.0,
-                                  "the calibration result"));
+  ASSERT_TRUE(
+      test_wait::wait_for([&] { return have_result.load(); }, 20.0, "the calibration result"));
   for (int p = 0; p < 3; ++p) EXPECT_EQ(result.positions[p], 6u);
 
   // The truth from the test's S: |u|, |v|, |w| and the angles uv, vw, wu.
   const int pairs[3][2] = {{0, 1}, {1, 2}, {2, 0}};
   for (int s = 0; s < 3; ++s) {
-    EXPECT_LE(std::abs(result.responsivity[s] - norm_row(s)), max_sigma * result.responsivity_std[s])
-        << "|" << "uvw"[s] << "| " << result.responsivity[s] << " +- " << result.responsivity_std[s]
+    EXPECT_LE(std::abs(result.responsivity[s] - norm_row(s)),
+              max_sigma * result.responsivity_std[s])
+        << "|"
+        << "uvw"[s] << "| " << result.responsivity[s] << " +- " << result.responsivity_std[s]
         << " truth " << norm_row(s);
     EXPECT_LT(result.responsivity_std[s], 1e-3);
     const int a = pairs[s][0], b = pairs[s][1];

@@ -16,8 +16,10 @@ TEST(ServiceBeforeCompletion, NamesTheMissingPhase) {
   double timeout_s = 120.0;
   pnh.getParam("steps", steps);
   pnh.getParam("timeout_s", timeout_s);
-  ros::Subscriber sub = nh.subscribe("/gimbal_controller/progress", 10, &test_wait::LatestValues::on_message, &progress_value);
-  ros::Subscriber status_sub = nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status_value);
+  ros::Subscriber sub = nh.subscribe("/gimbal_controller/progress", 10,
+                                     &test_wait::LatestValues::on_message, &progress_value);
+  ros::Subscriber status_sub =
+      nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status_value);
   ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
   ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(60.0)));
 
@@ -46,9 +48,8 @@ TEST(ServiceBeforeCompletion, NamesTheMissingPhase) {
   }
   ASSERT_EQ(progress_value("phase"), "y") << "the gimbal never reached phase y";
   // Past the reorder window of the dwells before: the node has released phase x's dwells.
-  ASSERT_TRUE(test_wait::wait_for(
-      [&] { return status_value("dwells_x") == std::to_string(steps); }, 60.0,
-      "calibration/status to count the phase x dwells"))
+  ASSERT_TRUE(test_wait::wait_for([&] { return status_value("dwells_x") == std::to_string(steps); },
+                                  60.0, "calibration/status to count the phase x dwells"))
       << "dwells_x " << status_value("dwells_x");
 
   r = stand_checks::get_intrinsics("");

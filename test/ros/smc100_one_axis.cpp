@@ -37,7 +37,7 @@ TEST(Smc100OneAxis, ManualRemountThroughContinue) {
   pnh.getParam("remount_wait_s", remount_wait_s);
   ASSERT_TRUE(pnh.getParam("log", log));
   ros::Subscriber progress_sub = nh.subscribe("/gimbal_controller/progress", 100,
-                                               &test_wait::LatestValues::on_message, &progress);
+                                              &test_wait::LatestValues::on_message, &progress);
   ros::Subscriber command_sub = nh.subscribe("/gimbal/command", 1000, on_command);
   ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(90.0)));
   ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(90.0)));

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 #include <ros/ros.h>
+#include <std_srvs/Trigger.h>
 #include <sys/wait.h>
 
 #include <cmath>
@@ -12,8 +13,6 @@
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <std_srvs/Trigger.h>
 
 #include "accel_intrinsics/GetIntrinsics.h"
 

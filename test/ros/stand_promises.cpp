@@ -9,19 +9,18 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <filesystem>
 #include <map>
-#include <string>
 #include <mutex>
+#include <string>
 #include <vector>
 
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/model/protocol.h"
+#include "run_dirs.h"
 #include "stand_checks.h"
 #include "wait_for.h"
-#include "run_dirs.h"
-
-#include <filesystem>
 
 namespace {
 using accel_intrinsics::GimbalCommand;
@@ -31,7 +30,9 @@ void on_command(const GimbalCommand::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex);
   commands.push_back(*msg);
 }
-bool exists(const std::string& path) { return ::access(path.c_str(), F_OK) == 0; }
+bool exists(const std::string& path) {
+  return ::access(path.c_str(), F_OK) == 0;
+}
 test_wait::LatestValues status_value;  // the latest calibration/status
 
 accel_intrinsics::GetIntrinsics::Response wait_for_result(double timeout_s) {
@@ -48,12 +49,12 @@ accel_intrinsics::GetIntrinsics::Response wait_for_result(double timeout_s) {
 // core::normal_gravity: Somigliana's closed formula (eq. 4-1) and the free-air reduction to
 // height h above the ellipsoid (eq. 4-3).
 double wgs84_normal_gravity(double latitude_deg, double h) {
-  const double a = 6378137.0;                  // semi-major axis, m
-  const double f = 1.0 / 298.257223563;        // flattening
-  const double m = 0.00344978650684;           // omega^2 a^2 b / GM
-  const double gamma_e = 9.7803253359;         // normal gravity at the equator, m/s^2
-  const double k = 0.00193185265241;           // Somigliana's constant
-  const double e2 = 6.69437999014e-3;         // first eccentricity squared
+  const double a = 6378137.0;            // semi-major axis, m
+  const double f = 1.0 / 298.257223563;  // flattening
+  const double m = 0.00344978650684;     // omega^2 a^2 b / GM
+  const double gamma_e = 9.7803253359;   // normal gravity at the equator, m/s^2
+  const double k = 0.00193185265241;     // Somigliana's constant
+  const double e2 = 6.69437999014e-3;    // first eccentricity squared
   const double s2 = std::pow(std::sin(latitude_deg * M_PI / 180.0), 2);
   const double gamma = gamma_e * (1.0 + k * s2) / std::sqrt(1.0 - e2 * s2);
   return gamma * (1.0 - 2.0 / a * (1.0 + f + m - 2.0 * f * s2) * h + 3.0 / (a * a) * h * h);
@@ -73,7 +74,8 @@ TEST(StandPromises, ResumeParamsStartTheRunThereAndResetKeepsTheRun) {
   pnh.getParam("resume_step", resume_step);
   pnh.getParam("timeout_s", timeout_s);
   ros::Subscriber c = nh.subscribe("/gimbal/command", 1000, on_command);
-  ros::Subscriber st = nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status_value);
+  ros::Subscriber st =
+      nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status_value);
   stand_checks::reset_and_start();
   if (HasFatalFailure()) return;
   const std::string table = run_dirs::latest(output_dir) + "/position_table.csv";
@@ -158,7 +160,8 @@ TEST(StandPromises, SiteLatitudeAndHeightSetTheGravityOfTheFit) {
     const double expected = truth.responsivity[s] * device_gravity / g_site;
     EXPECT_LE(std::abs(res.result.responsivity[s] - expected),
               limits.max_sigma * res.result.responsivity_std[s])
-        << "|" << "uvw"[s] << "| " << res.result.responsivity[s] << " expected " << expected;
+        << "|"
+        << "uvw"[s] << "| " << res.result.responsivity[s] << " expected " << expected;
     // ... and visibly not the truth itself (the shift is many standard uncertainties).
     EXPECT_GT(std::abs(res.result.responsivity[s] - truth.responsivity[s]),
               10.0 * res.result.responsivity_std[s]);
@@ -186,7 +189,9 @@ TEST(StandPromises, Eq4ModelOnTheLiveStand) {
   for (int s = 0; s < 3; ++s) {
     for (int p = 0; p < 3; ++p) {
       EXPECT_NEAR(res.result.offset_per_phase[3 * s + p], truth.O[s], 5.0 * limits.max_offset_std)
-          << "O_" << "uvw"[s] << " phase " << "xyz"[p];
+          << "O_"
+          << "uvw"[s] << " phase "
+          << "xyz"[p];
     }
   }
 }

@@ -5,8 +5,8 @@
 #include <map>
 #include <memory>
 
-#include "accel_intrinsics/GimbalCommand.h"
 #include "../support/bag_writer.h"
+#include "accel_intrinsics/GimbalCommand.h"
 #include "offline_compare.h"
 #include "stand_checks.h"
 

@@ -8,21 +8,21 @@
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
 #include <std_msgs/String.h>
+#include <yaml-cpp/yaml.h>
 
 #include <filesystem>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
-#include <yaml-cpp/yaml.h>
 
 #include "accel_intrinsics/Dwell.h"
 #include "accel_intrinsics/GetIntrinsics.h"
-#include "accel_intrinsics/core/run/calibrate.h"
-#include "accel_intrinsics/core/fit/fit.h"
-#include "accel_intrinsics/core/noise/noise.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/dwells/rest_detection.h"
 #include "accel_intrinsics/core/dwells/samples_file.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/run/calibrate.h"
 #include "run_dirs.h"
 
 namespace accel_intrinsics {
@@ -54,8 +54,8 @@ TEST(TumbleLive, ReplayedSessionGivesRestsProgressAndTheFit) {
   // calibration/dwell: one message per rest found (docs/design.md section 17).
   std::mutex dwell_mutex;
   std::vector<Dwell> dwells;
-  ros::Subscriber dwell_sub = nh.subscribe<Dwell>(
-      "calibration/dwell", 1000, [&](const Dwell::ConstPtr& m) {
+  ros::Subscriber dwell_sub =
+      nh.subscribe<Dwell>("calibration/dwell", 1000, [&](const Dwell::ConstPtr& m) {
         std::lock_guard<std::mutex> lock(dwell_mutex);
         dwells.push_back(*m);
       });
@@ -149,7 +149,8 @@ TEST(TumbleLive, ReplayedSessionGivesRestsProgressAndTheFit) {
   EXPECT_LT(r.reduced_chi2, 2.0);  // white weights: 16.6 (docs/finding_the_missing_effect.md)
   std::string output_dir;
   ASSERT_TRUE(nh.getParam("calibration/output_dir", output_dir));
-  EXPECT_TRUE(std::filesystem::exists(run_dirs::latest(output_dir) + "/intrinsics.yaml")) << output_dir;
+  EXPECT_TRUE(std::filesystem::exists(run_dirs::latest(output_dir) + "/intrinsics.yaml"))
+      << output_dir;
   {
     // Each rest of the table the node wrote beside the result came as a calibration/dwell.
     const core::PositionTable rests =

@@ -55,8 +55,7 @@ void expect_complete(const RunFiles& run, const std::string& device, int steps) 
   ASSERT_FALSE(run.dir.empty()) << device;
   // output_dir/<device>/<UTC time, ISO 8601 basic>
   EXPECT_EQ(run.dir.parent_path().filename(), device);
-  EXPECT_TRUE(std::regex_match(run.dir.filename().string(),
-                               std::regex(R"(\d{8}T\d{6}Z(-\d+)?)")))
+  EXPECT_TRUE(std::regex_match(run.dir.filename().string(), std::regex(R"(\d{8}T\d{6}Z(-\d+)?)")))
       << run.dir;
   for (const char* name :
        {"result.json", "intrinsics.yaml", "position_table.csv", "calibration_state.yaml"}) {

@@ -2,8 +2,8 @@
 #include <fstream>
 
 #include "accel_intrinsics/core/dwells/position_table.h"
-#include "stand_checks.h"
 #include "run_dirs.h"
+#include "stand_checks.h"
 
 namespace {
 
@@ -55,7 +55,8 @@ TEST(TwoRigs, BothMatchTheirOwnTruth) {
       EXPECT_EQ(res.result.positions[p], static_cast<unsigned>(positions_per_phase[i]))
           << namespaces[i] << " phase " << p;
     }
-    const std::string table = run_dirs::latest(output_dir + "/" + namespaces[i]) + "/position_table.csv";
+    const std::string table =
+        run_dirs::latest(output_dir + "/" + namespaces[i]) + "/position_table.csv";
     EXPECT_EQ(stand_checks::count_csv_rows(table), 3u * res.result.positions[0]);
     // The closing position is a row step = N at 2 pi, once per phase, only where it was run.
     const std::size_t closing_rows = count_closing_rows(table);

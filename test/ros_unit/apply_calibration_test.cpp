@@ -1,11 +1,11 @@
 // CalibrationApplier (the apply node's per-message work), without a roscore: the corrected
 // acceleration is P (R - O), every other field passes through, the covariance is filled from the
 // noise when known and carried through P otherwise.
-#include "accel_intrinsics/ros/apply_calibration_node.h"
-
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+
+#include "accel_intrinsics/ros/apply_calibration_node.h"
 
 namespace ai = accel_intrinsics;
 
@@ -70,7 +70,8 @@ TEST(ApplyCalibration, CovarianceFromTheNoiseOrCarriedThroughP) {
   for (int i = 0; i < 9; ++i) in.linear_acceleration_covariance[i] = C(i / 3, i % 3);
   ai::CalibrationApplier(c).apply(in, &out);
   const Eigen::Matrix3d through = c.P * C * c.P.transpose();
-  for (int i = 0; i < 9; ++i) EXPECT_NEAR(out.linear_acceleration_covariance[i], through(i / 3, i % 3), 1e-18);
+  for (int i = 0; i < 9; ++i)
+    EXPECT_NEAR(out.linear_acceleration_covariance[i], through(i / 3, i % 3), 1e-18);
   // -1: unknown, left alone.
   in.linear_acceleration_covariance.fill(0.0);
   in.linear_acceleration_covariance[0] = -1.0;

@@ -3,16 +3,15 @@
 // forced: each must give a result or a BagInputError with a one-line message, never a crash, a
 // hang or another exception. The seed bags must still read, to the same table both ways; the
 // crafted_* corruptions must be refused on the rosbag path.
-#include <gtest/gtest.h>
-
 #include <dirent.h>
+#include <gtest/gtest.h>
 
 #include <algorithm>
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/ros/bag_input.h"
 #include "../support/source_dir.h"
+#include "accel_intrinsics/ros/bag_input.h"
 
 namespace ai = accel_intrinsics;
 
@@ -47,7 +46,8 @@ bool is_seed(const std::string& path) {
 
 TEST(BagFuzzRegression, CorpusReadsCleanlyOrFailsWithOneLine) {
   const std::vector<std::string> files = corpus_files();
-  ASSERT_GE(files.size(), 5u) << accel_intrinsics::test_support::source_dir() << "/fuzz/corpus/bag_input";
+  ASSERT_GE(files.size(), 5u) << accel_intrinsics::test_support::source_dir()
+                              << "/fuzz/corpus/bag_input";
   int results = 0, errors = 0;
   for (const std::string& path : files) {
     std::vector<std::size_t> rows;
@@ -63,7 +63,8 @@ TEST(BagFuzzRegression, CorpusReadsCleanlyOrFailsWithOneLine) {
         const std::string message = e.what();
         EXPECT_FALSE(message.empty()) << path;
         EXPECT_EQ(message.find('\n'), std::string::npos) << path << ": " << message;
-        EXPECT_NE(message.find(path), std::string::npos) << "the message names the file: " << message;
+        EXPECT_NE(message.find(path), std::string::npos)
+            << "the message names the file: " << message;
         EXPECT_FALSE(is_seed(path)) << path << ": " << message;
         ++errors;
       } catch (const std::exception& e) {

@@ -19,14 +19,14 @@
 #include <string>
 #include <utility>
 
-#include "accel_intrinsics/core/run/calibrate.h"
+#include "../support/source_dir.h"
+#include "../support/test_files.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/compare_results.h"
 #include "accel_intrinsics/ros/offline_fit.h"
-#include "../support/source_dir.h"
-#include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
@@ -38,7 +38,8 @@ namespace {
 using accel_intrinsics::test_support::read_file;
 using accel_intrinsics::test_support::TempDir;
 
-const std::string kBudget = accel_intrinsics::test_support::source_dir() + "/config/uncertainty_budget.yaml";
+const std::string kBudget =
+    accel_intrinsics::test_support::source_dir() + "/config/uncertainty_budget.yaml";
 
 core::Device device(std::uint64_t seed) {
   core::Device d;
@@ -310,8 +311,10 @@ TEST(CompareResults, RefusesDifferentGravityAndResultsWithoutUncertaintiesInOneL
   const json a = json::parse(read_file(dir.file("a.json")));
   const json c = json::parse(read_file(dir.file("c.json")));
   const double ua = a.at("responsivity_std").at("u"), uc = c.at("responsivity_std").at("u");
-  EXPECT_NEAR(t.at("parameters").at("responsivity_u").at("U")[0].get<double>(), 2.0 * ua, 1e-9 * ua);
-  EXPECT_NEAR(t.at("parameters").at("responsivity_u").at("U")[1].get<double>(), 2.0 * uc, 1e-9 * uc);
+  EXPECT_NEAR(t.at("parameters").at("responsivity_u").at("U")[0].get<double>(), 2.0 * ua,
+              1e-9 * ua);
+  EXPECT_NEAR(t.at("parameters").at("responsivity_u").at("U")[1].get<double>(), 2.0 * uc,
+              1e-9 * uc);
   const double aa = a.at("angles_std_deg").at("vw"), oc = c.at("offset_std").at("w");
   EXPECT_NEAR(t.at("parameters").at("angle_vw").at("U")[0].get<double>(), 2.0 * aa, 1e-9 * aa);
   EXPECT_NEAR(t.at("parameters").at("offset_w").at("U")[1].get<double>(), 2.0 * oc, 1e-9 * oc);

@@ -13,11 +13,11 @@
 #include <sstream>
 #include <string>
 
+#include "../support/source_dir.h"
+#include "../support/test_files.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/ros/offline_fit.h"
-#include "../support/source_dir.h"
-#include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
@@ -27,7 +27,8 @@ using accel_intrinsics::test_support::TempDir;
 
 namespace {
 
-const std::string kScript = accel_intrinsics::test_support::source_dir() + "/scripts/certificate_report";
+const std::string kScript =
+    accel_intrinsics::test_support::source_dir() + "/scripts/certificate_report";
 
 struct Shell {
   int status = -1;
@@ -108,8 +109,9 @@ TEST(CertificateGuard, StandardGravityWithItsOwnUncertaintyOrTheSitesGIsCertifie
 TEST(CertificateGuard, TheTemplatesCertificateBlockIsRefused) {
   TempDir dir;
   // The shipped template, g from the site: only the block is wrong.
-  const std::string json = result(
-      dir, 9.80123, accel_intrinsics::test_support::source_dir() + "/config/uncertainty_budget.yaml");
+  const std::string json =
+      result(dir, 9.80123,
+             accel_intrinsics::test_support::source_dir() + "/config/uncertainty_budget.yaml");
   const std::string pdf = dir.file("c.pdf");
   const Shell r = shell("/usr/bin/python3 " + kScript + " --out " + pdf + " " + json, dir);
   EXPECT_EQ(r.status, 3) << r.err;
@@ -129,8 +131,7 @@ TEST(CertificateGuard, DraftMakesOneWithDraftOnEveryPage) {
   EXPECT_EQ(refused.status, 3);
   EXPECT_NE(refused.err.find("9.80665"), std::string::npos) << refused.err;
   EXPECT_NE(refused.err.find("template"), std::string::npos) << refused.err;
-  const Shell r =
-      shell("/usr/bin/python3 " + kScript + " --draft --out " + pdf + " " + json, dir);
+  const Shell r = shell("/usr/bin/python3 " + kScript + " --draft --out " + pdf + " " + json, dir);
   ASSERT_EQ(r.status, 0) << r.err;
   ASSERT_TRUE(fs::exists(pdf));
   ASSERT_EQ(shell("pdfinfo " + pdf + " > " + dir.file("info.txt"), dir).status, 0);

@@ -13,11 +13,11 @@
 #include <string>
 #include <vector>
 
+#include "../support/bag_writer.h"
+#include "../support/test_files.h"
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/ros/dwell_message.h"
 #include "accel_intrinsics/ros/offline_fit.h"
-#include "../support/bag_writer.h"
-#include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;

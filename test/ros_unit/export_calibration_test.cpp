@@ -15,10 +15,10 @@
 #include <sstream>
 #include <string>
 
+#include "../support/test_files.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/ros/offline_fit.h"
-#include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
 namespace fs = std::filesystem;
@@ -28,7 +28,9 @@ namespace {
 using accel_intrinsics::test_support::read_file;
 using accel_intrinsics::test_support::TempDir;
 
-int lines(const std::string& text) { return static_cast<int>(std::count(text.begin(), text.end(), '\n')); }
+int lines(const std::string& text) {
+  return static_cast<int>(std::count(text.begin(), text.end(), '\n'));
+}
 
 // A simulated position table as CSV.
 std::string write_table(const TempDir& dir) {
@@ -70,14 +72,16 @@ TEST(OfflineFitExport, WritesEveryRequestedFormatWithTheResultsNumbers) {
   std::ostringstream out, err;
   ASSERT_EQ(ai::run_offline_fit(args, out, err), ai::kOfflineFitOk) << err.str();
   // px4 states its leftover error on stderr.
-  EXPECT_NE(err.str().find("offline_fit: note: px4 export: largest error left over all orientations"),
-            std::string::npos)
+  EXPECT_NE(
+      err.str().find("offline_fit: note: px4 export: largest error left over all orientations"),
+      std::string::npos)
       << err.str();
   const nlohmann::json result = nlohmann::json::parse(read_file(args.json_out));
   const Eigen::Matrix3d P = rows_of(result.at("cross_sensitivity"));
   const YAML::Node calib = YAML::LoadFile(dir.file("calib.yaml"));
   for (int i = 0; i < 9; ++i) EXPECT_NEAR(calib["SM"][i].as<double>(), P(i / 3, i % 3), 1e-12);
-  EXPECT_NE(read_file(dir.file("calib.yaml")).find("offline_fit result of " + args.csv), std::string::npos);
+  EXPECT_NE(read_file(dir.file("calib.yaml")).find("offline_fit result of " + args.csv),
+            std::string::npos);
   EXPECT_TRUE(YAML::LoadFile(dir.file("imu.yaml"))["imu0"]["accelerometers"]["M"]);
   EXPECT_NE(read_file(dir.file("px4.params")).find("CAL_ACC0_ZSCALE"), std::string::npos);
 }
@@ -141,7 +145,8 @@ TEST(ExportCalibration, BadInputIsOneLineAndNoFile) {
   };
   std::ofstream(dir.file("garbage.json")) << "{not json";
   const Case cases[] = {
-      {{dir.file("missing.json"), "imu_calib", dir.file("out")}, "cannot read '" + dir.file("missing.json") + "'"},
+      {{dir.file("missing.json"), "imu_calib", dir.file("out")},
+       "cannot read '" + dir.file("missing.json") + "'"},
       {{dir.file("garbage.json"), "imu_calib", dir.file("out")}, dir.file("garbage.json")},
       {{dir.file("garbage.json"), "matlab", dir.file("out")}, "unknown export format 'matlab'"},
   };

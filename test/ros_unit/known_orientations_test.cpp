@@ -8,15 +8,14 @@
 
 #include <Eigen/Core>
 #include <cmath>
-
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 
-#include "accel_intrinsics/ros/offline_fit.h"
 #include "../support/source_dir.h"
+#include "accel_intrinsics/ros/offline_fit.h"
 
 namespace ai = accel_intrinsics;
 using json = nlohmann::json;
@@ -70,7 +69,8 @@ json fit_example(const std::string& name) {
 }
 
 void expect_truth(const std::string& name) {
-  const Truth t = read_truth(accel_intrinsics::test_support::source_dir() + "/docs/examples/" + name);
+  const Truth t =
+      read_truth(accel_intrinsics::test_support::source_dir() + "/docs/examples/" + name);
   ASSERT_GT(t.counts_per_ms2, 0.0);
   const json j = fit_example(name);
   EXPECT_EQ(j["output_unit"], "counts");
@@ -86,9 +86,12 @@ void expect_truth(const std::string& name) {
   const auto angle = [&](int a, int b) {
     return std::acos(t.S.row(a).normalized().dot(t.S.row(b).normalized())) * 180.0 / M_PI;
   };
-  EXPECT_NEAR(j["angles_deg"]["uv"].get<double>(), angle(0, 1), 4 * j["angles_std_deg"]["uv"].get<double>());
-  EXPECT_NEAR(j["angles_deg"]["vw"].get<double>(), angle(1, 2), 4 * j["angles_std_deg"]["vw"].get<double>());
-  EXPECT_NEAR(j["angles_deg"]["wu"].get<double>(), angle(2, 0), 4 * j["angles_std_deg"]["wu"].get<double>());
+  EXPECT_NEAR(j["angles_deg"]["uv"].get<double>(), angle(0, 1),
+              4 * j["angles_std_deg"]["uv"].get<double>());
+  EXPECT_NEAR(j["angles_deg"]["vw"].get<double>(), angle(1, 2),
+              4 * j["angles_std_deg"]["vw"].get<double>());
+  EXPECT_NEAR(j["angles_deg"]["wu"].get<double>(), angle(2, 0),
+              4 * j["angles_std_deg"]["wu"].get<double>());
   // The vectors (rows of S, counts per m/s^2), component by component.
   for (int s = 0; s < 3; ++s) {
     for (int c = 0; c < 3; ++c) {
@@ -99,9 +102,13 @@ void expect_truth(const std::string& name) {
   }
 }
 
-TEST(KnownOrientations, SixPositionFlipExample) { expect_truth("six_position.csv"); }
+TEST(KnownOrientations, SixPositionFlipExample) {
+  expect_truth("six_position.csv");
+}
 
-TEST(KnownOrientations, TumbleOf24Example) { expect_truth("tumble24.csv"); }
+TEST(KnownOrientations, TumbleOf24Example) {
+  expect_truth("tumble24.csv");
+}
 
 TEST(KnownOrientations, CountsWithoutOutputUnitFailTheQualityGate) {
   ai::OfflineFitArguments args;

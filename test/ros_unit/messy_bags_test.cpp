@@ -16,11 +16,11 @@
 #include <string>
 #include <vector>
 
+#include "../support/bag_writer.h"
+#include "../support/test_files.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/ros/conversions.h"
 #include "accel_intrinsics/ros/offline_fit.h"
-#include "../support/bag_writer.h"
-#include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
@@ -75,7 +75,8 @@ std::vector<Message> messages(const core::Recording& rec, const BagRecipe& r) {
     core::ImuSample shifted = s;
     shifted.stamp_s += 1000.0 + r.imu_clock_offset_s;
     shifted.outputs *= r.output_scale;
-    const double receive = s.stamp_s + 1000.0 + 0.002 + (r.receive_jitter_s > 0 ? jitter(rng) : 0.0);
+    const double receive =
+        s.stamp_s + 1000.0 + 0.002 + (r.receive_jitter_s > 0 ? jitter(rng) : 0.0);
     out.push_back({receive, false, {}, shifted});
     if (r.duplicate_every > 0 && ++k % r.duplicate_every == 0) {
       out.push_back({receive + 0.003, false, {}, shifted});
@@ -115,7 +116,7 @@ struct ToolResult {
 };
 
 ToolResult offline_fit(std::vector<std::string> bags, const std::string& json_path,
-                double imu_time_offset = 0.0, bool offset_given = false) {
+                       double imu_time_offset = 0.0, bool offset_given = false) {
   ai::OfflineFitArguments args;
   args.bags = std::move(bags);
   args.json_out = json_path;
@@ -149,7 +150,8 @@ json fit_part(json j) {
   return j;
 }
 
-ToolResult run_recipe(const BagRecipe& recipe, const TempDir& dir, double offset = 0.0, bool given = false) {
+ToolResult run_recipe(const BagRecipe& recipe, const TempDir& dir, double offset = 0.0,
+                      bool given = false) {
   const core::Recording rec = core::simulate_recording(stand());
   write_bags({dir.file("run.bag")}, messages(rec, recipe), recipe);
   return offline_fit({dir.file("run.bag")}, dir.file("run.json"), offset, given);
@@ -157,7 +159,7 @@ ToolResult run_recipe(const BagRecipe& recipe, const TempDir& dir, double offset
 
 void expect_one_error_line(const ToolResult& r, const std::string& needle) {
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-  EXPECT_NE(r.err.find("offline_fit: error: " ), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("offline_fit: error: "), std::string::npos) << r.err;
   EXPECT_NE(r.err.find(needle), std::string::npos) << "expected '" << needle << "' in " << r.err;
 }
 

@@ -1,8 +1,6 @@
 // noise_report in process: a CSV and a bag of simulated static samples with known white noise
 // give N within 5 %; the JSON, kalibr YAML and PNG appear; bad input is one line and no file.
 #include "accel_intrinsics/ros/noise_report.h"
-#include "../support/bag_writer.h"
-#include "../support/test_files.h"
 
 #include <gtest/gtest.h>
 #include <rosbag/bag.h>
@@ -19,6 +17,9 @@
 #include <random>
 #include <sstream>
 #include <string>
+
+#include "../support/bag_writer.h"
+#include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
 namespace fs = std::filesystem;
@@ -38,7 +39,8 @@ void simulate(std::size_t n, Sink sink) {
   std::normal_distribution<double> normal(0.0, 1.0);
   for (std::size_t i = 0; i < n; ++i) {
     double v[3];
-    for (int a = 0; a < 3; ++a) v[a] = (a == 2 ? 9.81 : 0.02) + kDensity[a] * std::sqrt(kRate) * normal(rng);
+    for (int a = 0; a < 3; ++a)
+      v[a] = (a == 2 ? 9.81 : 0.02) + kDensity[a] * std::sqrt(kRate) * normal(rng);
     sink(100.0 + i / kRate, v);
   }
 }
@@ -50,7 +52,9 @@ TEST(NoiseReport, CsvGivesNAndWritesJsonKalibrAndPlot) {
     std::ofstream out(csv);
     out << "t,u,v,w\n";
     out.precision(17);
-    simulate(60000, [&](double t, const double* v) { out << t << ',' << v[0] << ',' << v[1] << ',' << v[2] << '\n'; });
+    simulate(60000, [&](double t, const double* v) {
+      out << t << ',' << v[0] << ',' << v[1] << ',' << v[2] << '\n';
+    });
   }
   ai::NoiseReportArguments args;
   args.csv = csv;
@@ -63,7 +67,8 @@ TEST(NoiseReport, CsvGivesNAndWritesJsonKalibrAndPlot) {
   const nlohmann::json j = nlohmann::json::parse(read_file(args.json_out));
   const char* axes[3] = {"u", "v", "w"};
   for (int a = 0; a < 3; ++a) {
-    EXPECT_NEAR(j["noise_density"][axes[a]].get<double>(), kDensity[a], 0.05 * kDensity[a]) << axes[a];
+    EXPECT_NEAR(j["noise_density"][axes[a]].get<double>(), kDensity[a], 0.05 * kDensity[a])
+        << axes[a];
     for (const char* key : {"noise_density_std", "bias_instability", "bias_instability_std",
                             "bias_instability_tau_s", "random_walk", "random_walk_std"}) {
       EXPECT_TRUE(j[key][axes[a]].is_number()) << key;

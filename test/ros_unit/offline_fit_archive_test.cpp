@@ -10,8 +10,8 @@
 #include <sstream>
 #include <string>
 
-#include "accel_intrinsics/ros/offline_fit.h"
 #include "../support/source_dir.h"
+#include "accel_intrinsics/ros/offline_fit.h"
 
 namespace ai = accel_intrinsics;
 

@@ -1,5 +1,5 @@
-// offline_fit --residuals-csv (docs/offline_and_bags.md, docs/finding_the_missing_effect.md): the CSV
-// that scripts/plot_residuals reads, checked against a position table the test writes from the
+// offline_fit --residuals-csv (docs/offline_and_bags.md, docs/finding_the_missing_effect.md): the
+// CSV that scripts/plot_residuals reads, checked against a position table the test writes from the
 // equations of docs/design.md section 1 and against the fit's own JSON (vectors, offsets, reduced
 // chi-square), so the CSV's model is the fitted device and its z-scores are the fit's.
 #include <gtest/gtest.h>
@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/ros/offline_fit.h"
 #include "../support/source_dir.h"
+#include "accel_intrinsics/ros/offline_fit.h"
 
 namespace ai = accel_intrinsics;
 
@@ -84,11 +84,10 @@ std::string write_table(const std::string& path) {
       const double a = 2.0 * M_PI * n / kSteps;
       Eigen::Vector3d mean = S * (kG * direction(phase, a)) + O;
       // Period 4 in the step (the angle's second harmonic, which S and O cannot follow).
-      for (int s = 0; s < 3; ++s)
-        mean(s) += (((n + s + k) % 4) - 1.5) * kStd / std::sqrt(kN);
+      for (int s = 0; s < 3; ++s) mean(s) += (((n + s + k) % 4) - 1.5) * kStd / std::sqrt(kN);
       f << phase << ',' << n << ',' << a << ',' << t << ',' << t + 2.0 << ',' << kN << ','
-        << mean(0) << ',' << mean(1) << ',' << mean(2) << ',' << kStd << ',' << kStd << ','
-        << kStd << '\n';
+        << mean(0) << ',' << mean(1) << ',' << mean(2) << ',' << kStd << ',' << kStd << ',' << kStd
+        << '\n';
     }
   }
   return path;
@@ -179,9 +178,9 @@ TEST(OfflineFitResiduals, AnalyzeGivesTheRefitAsAfter) {
 TEST(OfflineFitResiduals, HandTumbleIsRefusedWithAReasonAndNoFile) {
   Dir dir;
   const std::string csv = dir.path + "/residuals.csv";
-  const ToolResult r = run_tool({"--samples",
-                          ai::test_support::source_dir() + "/test/data/imu_tk_xsens/xsens_acc.mat",
-                          "--output-unit", "counts", "--residuals-csv", csv});
+  const ToolResult r = run_tool(
+      {"--samples", ai::test_support::source_dir() + "/test/data/imu_tk_xsens/xsens_acc.mat",
+       "--output-unit", "counts", "--residuals-csv", csv});
   EXPECT_EQ(r.status, ai::kOfflineFitBadCommandLine) << r.err;
   EXPECT_NE(r.err.find("--residuals-csv"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(csv));

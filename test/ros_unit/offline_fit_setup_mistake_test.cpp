@@ -105,8 +105,8 @@ TEST(OfflineFitSetupMistake, GateNamesAxisSignAndOffersUnknownOrientations) {
   EXPECT_TRUE(ja["effects"].empty()) << ja["effects"].dump();
 
   // The second opinion: the same rests without gimbal angles give the simulated intrinsics.
-  const ToolOutput t = offline_fit({"--csv", dir.file("table.csv"), "--unknown-orientations", "--json",
-                             dir.file("t.json")});
+  const ToolOutput t = offline_fit(
+      {"--csv", dir.file("table.csv"), "--unknown-orientations", "--json", dir.file("t.json")});
   ASSERT_EQ(t.status, 0) << t.err;
   const json jt = load(dir.file("t.json"));
   const char* names[3] = {"u", "v", "w"};

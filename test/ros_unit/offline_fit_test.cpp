@@ -1,8 +1,8 @@
 // offline_fit end to end, without a roscore: the test writes bags (test_support::BagWriter) and
-// CSV files, runs offline_fit in process (run_offline_fit of ros/offline_fit.h, with the arguments the
-// command line would give) and checks exit status, stderr and the JSON/CSV it writes. A few smoke
-// tests run the built binary (--help, command-line errors, one bag and one CSV run); it is found
-// next to this test binary (catkin puts both in devel/lib/accel_intrinsics) or through the
+// CSV files, runs offline_fit in process (run_offline_fit of ros/offline_fit.h, with the arguments
+// the command line would give) and checks exit status, stderr and the JSON/CSV it writes. A few
+// smoke tests run the built binary (--help, command-line errors, one bag and one CSV run); it is
+// found next to this test binary (catkin puts both in devel/lib/accel_intrinsics) or through the
 // environment variable ACCEL_OFFLINE_FIT.
 #include "accel_intrinsics/ros/offline_fit.h"
 
@@ -26,17 +26,17 @@
 #include <string>
 #include <vector>
 
+#include "../support/bag_writer.h"
+#include "../support/statistical_bounds.h"
 #include "accel_intrinsics/GimbalCommand.h"
-#include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
-#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/ros/bag_input.h"
 #include "accel_intrinsics/ros/conversions.h"
-#include "../support/bag_writer.h"
-#include "../support/statistical_bounds.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;
@@ -620,10 +620,10 @@ TEST(OfflineFit, SettleDiscardDropsTheFirstSecondsOfEachDwell) {
 
   // The built binary, as a shell sees it: exit status 3 (the number, not the enum), the result
   // file written, the export asked for not.
-  const ToolRun bin = run_binary({"--bag", dir.file("run.bag"), "--settle-discard", "0.25",
-                                  "--json", dir.file("bin.json"), "--export",
-                                  "px4=" + dir.file("bin_px4.params")},
-                                 dir);
+  const ToolRun bin =
+      run_binary({"--bag", dir.file("run.bag"), "--settle-discard", "0.25", "--json",
+                  dir.file("bin.json"), "--export", "px4=" + dir.file("bin_px4.params")},
+                 dir);
   EXPECT_EQ(bin.status, 3) << bin.err;
   EXPECT_FALSE(load_json(dir.file("bin.json"))["quality"]["pass"].get<bool>());
   EXPECT_FALSE(file_exists(dir.file("bin_px4.params"))) << bin.err;
@@ -922,7 +922,8 @@ TEST(OfflineFit, CsvWithAnalyzeNamesAHiddenEffect) {
   TempDir dir;
   core::SimulationOptions sim;
   sim.truth.S << 1.02, 0.01, -0.005, 0.003, 0.98, 0.02, -0.01, 0.015, 1.005;
-  sim.truth.effects.push_back(core::Effect{core::EffectKind::AngleOffset, 1, 0.0015});  // y, 0.09 deg
+  sim.truth.effects.push_back(
+      core::Effect{core::EffectKind::AngleOffset, 1, 0.0015});  // y, 0.09 deg
   sim.protocol.steps_per_phase = 12;
   sim.seed = 5;
   core::write_position_table_file(dir.file("table.csv"), core::simulate_position_table(sim));

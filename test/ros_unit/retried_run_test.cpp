@@ -12,12 +12,12 @@
 #include <sstream>
 #include <string>
 
+#include "../support/bag_writer.h"
+#include "../support/test_files.h"
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/model/protocol.h"
 #include "accel_intrinsics/ros/offline_fit.h"
-#include "../support/bag_writer.h"
-#include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;

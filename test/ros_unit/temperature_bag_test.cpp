@@ -1,7 +1,7 @@
 // offline_fit with a DUT temperature topic (docs/design.md section 10): a bag written here by hand
-// (test_support::BagWriter, not from our simulator) holds gimbal commands, IMU samples and sensor_msgs/Temperature
-// readings; offline_fit must put the mean reading of each dwell into the position table's
-// temperature_c column, computed here independently from the readings written.
+// (test_support::BagWriter, not from our simulator) holds gimbal commands, IMU samples and
+// sensor_msgs/Temperature readings; offline_fit must put the mean reading of each dwell into the
+// position table's temperature_c column, computed here independently from the readings written.
 #include <gtest/gtest.h>
 #include <rosbag/bag.h>
 #include <sensor_msgs/Imu.h>
@@ -18,12 +18,12 @@
 #include <string>
 #include <vector>
 
+#include "../support/bag_writer.h"
+#include "../support/test_files.h"
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/ros/bag_input.h"
 #include "accel_intrinsics/ros/offline_fit.h"
-#include "../support/bag_writer.h"
-#include "../support/test_files.h"
 
 namespace ai = accel_intrinsics;
 namespace core = accel_intrinsics::core;

@@ -3,10 +3,10 @@
 // topic alone, written here with rosbag (duplicated, reordered and shifted stamps); a gimbal run
 // fitted with --unknown-orientations against the gimbal fit.
 #include <gtest/gtest.h>
-#include <Eigen/Dense>
 #include <rosbag/bag.h>
 #include <sensor_msgs/Imu.h>
 
+#include <Eigen/Dense>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -18,8 +18,8 @@
 #include "../support/source_dir.h"
 #include "../support/statistical_bounds.h"
 #include "../support/test_files.h"
-#include "accel_intrinsics/core/model/intrinsics.h"
 #include "accel_intrinsics/core/dwells/samples_file.h"
+#include "accel_intrinsics/core/model/intrinsics.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 #include "accel_intrinsics/core/simulation/tumble_simulator.h"
 #include "accel_intrinsics/ros/compare_results.h"
@@ -30,7 +30,8 @@ namespace {
 
 using test_support::TempDir;
 
-const std::string kXsens = accel_intrinsics::test_support::source_dir() + "/test/data/imu_tk_xsens/";
+const std::string kXsens =
+    accel_intrinsics::test_support::source_dir() + "/test/data/imu_tk_xsens/";
 
 nlohmann::json read_json(const std::string& path) {
   std::ifstream in(path);
@@ -76,9 +77,9 @@ TEST(TumbleOffline, ImuTkXsensSessionAgreesWithImuTksOwnResult) {
   EXPECT_GE(rests, 34u);
   EXPECT_LE(rests, 40u);
   EXPECT_FALSE(j["rejected_spans"].empty());
-  // Real noise is not white (docs/design.md section 12): with white weights the reduced chi-square is
-  // 16.6; with the noise model of the 51 s first rest, GLS across the rests, it is 1.34 (29 dof),
-  // within its chi-square band (the rests' errors are correlated, as the model says).
+  // Real noise is not white (docs/design.md section 12): with white weights the reduced chi-square
+  // is 16.6; with the noise model of the 51 s first rest, GLS across the rests, it is 1.34 (29
+  // dof), within its chi-square band (the rests' errors are correlated, as the model says).
   EXPECT_NE(j["noise_model"], "white");
   EXPECT_LT(j["reduced_chi2"].get<double>(), 2.0);
 
@@ -291,8 +292,9 @@ TEST(TumbleOffline, BudgetExportsAndCertificateTakeATumble) {
   for (const nlohmann::json& source : sources) {
     if (source["name"] != "gravity_std_rel") continue;
     gravity = true;
-    EXPECT_NEAR(source["responsivity_std"]["u"].get<double>() / j["responsivity"]["u"].get<double>(),
-                3.0e-4, 3.0e-6);
+    EXPECT_NEAR(
+        source["responsivity_std"]["u"].get<double>() / j["responsivity"]["u"].get<double>(),
+        3.0e-4, 3.0e-6);
   }
   EXPECT_TRUE(gravity) << sources.dump();
   // imu_tk's text file: T (3x3), K (3x3), B (3): a' = T K (raw - B) must give |a'| = g at rests.
@@ -309,7 +311,8 @@ TEST(TumbleOffline, BudgetExportsAndCertificateTakeATumble) {
     EXPECT_NEAR((T * K * (raw - B)).norm(), g, 0.01) << rest.dump();
   }
   if (std::system("command -v pdftotext >/dev/null") == 0) {
-    ASSERT_EQ(std::system(("pdftotext -layout " + args.report_pdf + " " + dir.file("c.txt")).c_str()), 0);
+    ASSERT_EQ(
+        std::system(("pdftotext -layout " + args.report_pdf + " " + dir.file("c.txt")).c_str()), 0);
     const std::string text = test_support::read_file(dir.file("c.txt"));
     EXPECT_NE(text.find("hand tumble, orientations unknown"), std::string::npos) << text;
   }
@@ -335,7 +338,9 @@ TEST(TumbleOffline, BadInputsGiveOneLine) {
   args.samples = dir.file("still.txt");
   r = run(args);
   EXPECT_EQ(r.status, kOfflineFitBadInput);
-  EXPECT_NE(r.err.find("1 rests found in the stream (0 still spans rejected), at least 10 needed"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("1 rests found in the stream (0 still spans rejected), at least 10 needed"),
+            std::string::npos)
+      << r.err;
   EXPECT_TRUE(dir.entries().count("out.json") == 0);
 
   OfflineFitArguments both;

@@ -58,8 +58,8 @@ inline std::string describe(const core::AnalysisResult& a) {
        << e.closest_alternative << ", |corr| " << e.closest_correlation << ')';
   }
   os << "; chi2_r " << a.before.summary.reduced_chi2 << " -> " << a.after.summary.reduced_chi2
-     << " (" << a.stop_reason << "); ambiguous groups " << a.ambiguous.size()
-     << "; not screened " << a.not_screened.size();
+     << " (" << a.stop_reason << "); ambiguous groups " << a.ambiguous.size() << "; not screened "
+     << a.not_screened.size();
   return os.str();
 }
 

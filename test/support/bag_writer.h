@@ -29,7 +29,7 @@ class BagWriter {
   std::string command_topic = "/gimbal/command";
   std::string temperature_topic = "/imu/temperature";
   std::string frame_id = "dut";
-  bool padded_imu = false;  // IMU messages with other fields filled (see sample())
+  bool padded_imu = false;       // IMU messages with other fields filled (see sample())
   double receive_delay_s = 0.0;  // bag time after the stamp (a recorder's transport delay)
   // Added to every stamp (and so to the bag time): a run recorded later than the simulation's 0.
   double stamp_offset_s = 0.0;
@@ -58,8 +58,8 @@ class BagWriter {
     write(command_topic, receive_time(e.stamp_s, receive_s), to_msg(e));
   }
   // The message's own numbers (GimbalCommand::PHASE_X.., ::MOVING..), malformed ones too.
-  void command(double stamp_s, int phase, std::uint32_t step, std::uint32_t steps,
-               double angle_rad, int state, double receive_s = kAtStamp) {
+  void command(double stamp_s, int phase, std::uint32_t step, std::uint32_t steps, double angle_rad,
+               int state, double receive_s = kAtStamp) {
     GimbalCommand msg;
     msg.header.stamp.fromSec(stamp_s + stamp_offset_s);
     msg.phase = static_cast<std::uint8_t>(phase);

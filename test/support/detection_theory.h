@@ -1,12 +1,13 @@
 // Detection power of a hidden effect, computed independently of the discrepancy analysis
-// (issue 15 item 2): shared by test/core/analysis/detection_theory_test.cpp and bench/detection_bench.cpp,
-// deliberately NOT in the core library and calling nothing of src/core/analysis/discrepancy.cpp or fit.cpp.
+// (issue 15 item 2): shared by test/core/analysis/detection_theory_test.cpp and
+// bench/detection_bench.cpp, deliberately NOT in the core library and calling nothing of
+// src/core/analysis/discrepancy.cpp or fit.cpp.
 //
 // Linear model of the dwell means with KNOWN noise (the simulator's sigma per accelerometer,
 // standard error sigma_s / sqrt(n) per dwell), whitened (every row divided by its standard error):
-//   base model (joint, docs/design.md section 1): accelerometer s, rows (g f^T, 1) in its own outputs;
-//   effect term (docs/design.md section 3): the column b = dR/d(value) at value 0, written out here from
-//   the table of section 3 (not from core::predict_outputs).
+//   base model (joint, docs/design.md section 1): accelerometer s, rows (g f^T, 1) in its own
+//   outputs; effect term (docs/design.md section 3): the column b = dR/d(value) at value 0, written
+//   out here from the table of section 3 (not from core::predict_outputs).
 // The part of b the base model cannot absorb is b_perp = (I - A (A^T A)^-1 A^T) b; the score
 // statistic of the effect is T ~ chi2_1(lambda) with non-centrality lambda = value^2 |b_perp|^2
 // (exact for terms linear in their value, first order otherwise). A family of candidates tested at
@@ -26,8 +27,8 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/model/effects.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/model/effects.h"
 #include "accel_intrinsics/core/model/protocol.h"
 
 namespace accel_intrinsics {
@@ -126,7 +127,7 @@ inline Eigen::VectorXd effect_column(const Problem& pr, const core::Effect& e) {
         break;
       }
       case EffectKind::OffsetDrift: dR(e.target) = d.mid_time_s; break;  // d (t - t0)
-      case EffectKind::AngleOffset:                                       // alpha + delta
+      case EffectKind::AngleOffset:                                      // alpha + delta
         if (in_phase) dR = pr.S * df;
         break;
       case EffectKind::AngleScale:  // alpha (1 + eps)
@@ -170,17 +171,17 @@ inline std::vector<core::Effect> candidate_family(bool two_way) {
 }
 
 struct Theory {
-  double sigma_value = 0.0;       // 1 / |b_perp|: standard uncertainty of the effect's value
+  double sigma_value = 0.0;        // 1 / |b_perp|: standard uncertainty of the effect's value
   double information_ratio = 0.0;  // |b_perp|^2 / |b|^2
-  double critical_chi2 = 0.0;     // family-wise max-T critical value
-  int family_size = 0;            // identifiable candidates in the family
+  double critical_chi2 = 0.0;      // family-wise max-T critical value
+  int family_size = 0;             // identifiable candidates in the family
 };
 
 // The effect's linearized uncertainty and the family-wise critical value at level alpha
 // (candidates with information ratio below `floor` are absorbed by the base model and left out).
 inline Theory theory_for(const Problem& pr, const core::Effect& effect,
-                         const std::vector<core::Effect>& family, double alpha,
-                         int draws = 40000, std::uint64_t seed = 424242, double floor = 1e-6) {
+                         const std::vector<core::Effect>& family, double alpha, int draws = 40000,
+                         std::uint64_t seed = 424242, double floor = 1e-6) {
   const Eigen::MatrixXd A = base_design(pr);
   Theory t;
   const Eigen::VectorXd b = effect_column(pr, effect);

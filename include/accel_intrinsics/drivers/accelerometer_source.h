@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
+#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/model/model.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 
@@ -115,7 +115,7 @@ class SimulatedAccelerometer : public AccelerometerSource {
   double noise_std_ = 0.0;
   double lag_s_ = 0.0;
   double time_origin_s_ = std::numeric_limits<double>::quiet_NaN();
-  std::int64_t next_index_ = -1;  // sample k is taken at k / rate_hz
+  std::int64_t next_index_ = -1;              // sample k is taken at k / rate_hz
   std::int64_t next_temperature_index_ = -1;  // reading k at k / temperature.rate_hz
   std::uint64_t skipped_ = 0;
   std::mt19937_64 rng_;

@@ -21,8 +21,8 @@
 #include <vector>
 
 #include "accel_intrinsics/core/model/effects.h"
-#include "accel_intrinsics/core/run/gimbal_protocol.h"
 #include "accel_intrinsics/core/model/protocol.h"
+#include "accel_intrinsics/core/run/gimbal_protocol.h"
 
 namespace accel_intrinsics {
 
@@ -82,13 +82,13 @@ class GimbalDriver : public core::GimbalMotion {
   virtual void on_imu(double /*t_s*/, const Eigen::Vector3d& /*outputs*/) {}
 };
 
-// The simulated gimbal. Its effects are the gimbal side of docs/design.md section 3 and are read from
-// the gimbal controller's own configuration; the calibration side never sees them.
-// A move within a phase follows core::move_fraction() (simulator.h) from the MOVING time to
-// the settled time, move_s + settle_s later: the commanded angle of the simulator and of the
-// timing-lag estimator, so a recorded stand run is evaluated with the motion that made it. A
-// phase change (remount) is a rotation over phase_change_s, then settle_s at rest. The times
-// are those of core::build_schedule() for the same move_s, phase_change_s and settle_s.
+// The simulated gimbal. Its effects are the gimbal side of docs/design.md section 3 and are read
+// from the gimbal controller's own configuration; the calibration side never sees them. A move
+// within a phase follows core::move_fraction() (simulator.h) from the MOVING time to the settled
+// time, move_s + settle_s later: the commanded angle of the simulator and of the timing-lag
+// estimator, so a recorded stand run is evaluated with the motion that made it. A phase change
+// (remount) is a rotation over phase_change_s, then settle_s at rest. The times are those of
+// core::build_schedule() for the same move_s, phase_change_s and settle_s.
 struct SimulatedGimbalOptions {
   double move_s = 1.0;          // duration of a move to the next position, s
   double phase_change_s = 5.0;  // duration of a move that changes phase (remount), s

@@ -20,10 +20,10 @@
 namespace accel_intrinsics {
 
 struct ManualGimbalOptions {
-  AxisMap axis_map;                     // what the operator sets, per phase
-  double pose_tolerance_deg = 5.0;      // the IMU's direction within this of the pose, deg
-  double check_s = 1.0;                 // the IMU's mean over this after continue, s
-  std::size_t min_samples = 5;          // at least this many IMU samples in the mean
+  AxisMap axis_map;                 // what the operator sets, per phase
+  double pose_tolerance_deg = 5.0;  // the IMU's direction within this of the pose, deg
+  double check_s = 1.0;             // the IMU's mean over this after continue, s
+  std::size_t min_samples = 5;      // at least this many IMU samples in the mean
   std::string imu_topic = "imu/data_raw";
 
   // Throws std::invalid_argument naming the field.

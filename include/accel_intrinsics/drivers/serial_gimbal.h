@@ -1,4 +1,5 @@
-// Serial gimbal drivers (docs/design.md section 10): the part common to the GRBL and SMC100 backends.
+// Serial gimbal drivers (docs/design.md section 10): the part common to the GRBL and SMC100
+// backends.
 //
 // Axis map: each phase of the protocol names the stage axis that turns alpha, with a sign and a
 // zero offset (stage position = zero_deg + sign * alpha in degrees), and where every other axis

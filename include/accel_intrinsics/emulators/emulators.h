@@ -89,7 +89,7 @@ class DeviceEmulator {
   mutable std::mutex mutex_;
   std::vector<std::string> commands_;
   std::string line_;  // received since the last LF
-  int moves_ = 0;      // move commands received (fault_at_this_move)
+  int moves_ = 0;     // move commands received (fault_at_this_move)
 };
 
 // An axis moving linearly at rate_deg_s.

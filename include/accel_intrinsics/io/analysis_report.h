@@ -6,8 +6,8 @@
 #include <iosfwd>
 #include <string>
 
-#include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/analysis/discrepancy.h"
+#include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/io/result_document.h"
 
 namespace accel_intrinsics {

@@ -10,8 +10,8 @@
 #include <optional>
 #include <string>
 
-#include "accel_intrinsics/core/run/calibration_run.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/run/calibration_run.h"
 
 namespace accel_intrinsics {
 namespace io {

@@ -1,5 +1,5 @@
-// Comparison inputs and output (docs/design.md section 9): result files read into the nine parameters
-// with expanded uncertainties, and the comparison JSON:
+// Comparison inputs and output (docs/design.md section 9): result files read into the nine
+// parameters with expanded uncertainties, and the comparison JSON:
 //   {"results": [names], "local_gravity", "k", "uncertainty": "budget" | "type_a_only",
 //    "parameters": {"responsivity_u": {"values": [...], "U": [...], "E_n": [...],
 //                   (three or more:) "reference_value", "reference_U",

@@ -6,7 +6,8 @@
 // error they leave over all orientations at 1 g (and ExportText::notice repeats it for stderr).
 //
 //   name       file                                    read by the tool as
-//   imu_calib  YAML SM: [9, row-major], bias: [3]      corrected = SM raw - bias  (SM = P, bias = P O)
+//   imu_calib  YAML SM: [9, row-major], bias: [3]      corrected = SM raw - bias  (SM = P, bias = P
+//   O)
 //              (dpkoch/imu_calib AccelCalib::loadCalib / applyCalib)
 //   imucal     JSON K_a, R_a, b_a (+ identity gyro)    acc = R_a^-1 K_a^-1 (raw - b_a)
 //              (mad-lab-fau/imucal FerrarisCalibrationInfo, _format_version 2.0.0)

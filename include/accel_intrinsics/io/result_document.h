@@ -10,8 +10,8 @@
 //     "joint+quadratic_nonlinearity[u]"), vectors_std, offset_std, offset_per_phase_std,
 //     cross_sensitivity_std, chi2, dof, fitted_effects [{name, target, value, std}] (the terms
 //     fitted in the certificate model), noise_model ("white", or {kind, source, rate_hz, rest
-//     {t_start, t_end, samples}, axes {u,v,w: {white_std, gm_sigma, gm_tau_s, rw_density, slow_scale_rel_var}}}: the
-//     noise of the dwell means the fit used, docs/design.md section 12)
+//     {t_start, t_end, samples}, axes {u,v,w: {white_std, gm_sigma, gm_tau_s, rw_density,
+//     slow_scale_rel_var}}}: the noise of the dwell means the fit used, docs/design.md section 12)
 //   from the dwells (core/noise.h), when they tell: noise_density {u,v,w} ((m/s^2)/sqrt(Hz), the
 //     continuous-time density sample_std / sqrt(rate)), noise_density_std, sample_rate_hz
 //   always: certificate_model (model_label of the certificate), certificate_policy (base|refit)
@@ -32,8 +32,8 @@
 //   always: units {responsivity, offset, angles_deg, local_gravity, noise_density, ...} (the unit
 //     of each key; output_unit names the device's output)
 //   from the context: device_serial, imu_topic, gimbal_driver, time_utc (ISO 8601),
-//     local_gravity_source, stamp (node), samples {used, dropped_*} (node), input, complete, warnings
-//     (offline_fit)
+//     local_gravity_source, stamp (node), samples {used, dropped_*} (node), input, complete,
+//     warnings (offline_fit)
 //
 // Non-finite numbers are null. Keys come out sorted. Files are written atomically (atomic_file.h).
 #pragma once
@@ -46,12 +46,12 @@
 #include <utility>
 #include <vector>
 
-#include "accel_intrinsics/core/run/calibrate.h"
+#include "accel_intrinsics/core/analysis/uncertainty_budget.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
+#include "accel_intrinsics/core/dwells/rest_detection.h"
 #include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/model/intrinsics.h"
-#include "accel_intrinsics/core/dwells/rest_detection.h"
-#include "accel_intrinsics/core/analysis/uncertainty_budget.h"
+#include "accel_intrinsics/core/run/calibrate.h"
 
 namespace accel_intrinsics {
 namespace io {
@@ -79,7 +79,7 @@ struct InputDescription {
   std::size_t dwells = 0;                  // rows of the position table
   std::optional<BagInputDescription> bag;  // absent: a CSV position table
   std::string summary;                     // one line for the text report
-  std::string type;  // "csv" (default when empty), "samples"; a bag has `bag`
+  std::string type;                        // "csv" (default when empty), "samples"; a bag has `bag`
 };
 
 // What the document says beyond the pipeline's report.
@@ -136,7 +136,8 @@ struct StoredResult {
   double local_gravity = 0.0;
   std::vector<StoredEffect> fitted_effects;
   // noise_density and sample_rate_hz when the file has them, else NaN.
-  Eigen::Vector3d noise_density = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::Vector3d noise_density =
+      Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   double sample_rate_hz = std::numeric_limits<double>::quiet_NaN();
   Eigen::Vector3d O_std = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   // uncertainty_budget.expanded when the result has one (comparisons, certificates).

@@ -1,6 +1,6 @@
 // The accelerometer node: publishes the samples of an AccelerometerSource on imu/data_raw as
-// sensor_msgs/Imu (REP 145 and docs/design.md section 2: linear_acceleration carries R_u, R_v, R_w).
-// The simulated source reads the DUT orientation from tf (the relative topic "tf", so rigs in
+// sensor_msgs/Imu (REP 145 and docs/design.md section 2: linear_acceleration carries R_u, R_v,
+// R_w). The simulated source reads the DUT orientation from tf (the relative topic "tf", so rigs in
 // different namespaces stay apart) at each sample time.
 #pragma once
 
@@ -55,9 +55,9 @@ class AccelerometerNode {
   AccelerometerOptions options_;
   tf2_ros::Buffer buffer_;
   std::unique_ptr<AccelerometerSource> source_;
-  SimulatedAccelerometer* simulated_ = nullptr;  // source_ when simulated
-  SerialLinesAccelerometer* serial_ = nullptr;   // source_ when serial_lines
-  SerialLinesStatus serial_status_;              // as last seen (logs what changed)
+  SimulatedAccelerometer* simulated_ = nullptr;           // source_ when simulated
+  SerialLinesAccelerometer* serial_ = nullptr;            // source_ when serial_lines
+  SerialLinesStatus serial_status_;                       // as last seen (logs what changed)
   std::unique_ptr<diagnostic_updater::Updater> updater_;  // serial_lines only
   ros::Subscriber tf_sub_, command_sub_;
   ros::Publisher imu_pub_;

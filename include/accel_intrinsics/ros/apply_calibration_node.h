@@ -1,19 +1,19 @@
-// apply_calibration: corrects a live IMU stream with a fitted calibration (docs/design.md section 7).
-// Subscribes imu/data_raw, publishes imu/data_calibrated with linear_acceleration = P (R - O);
+// apply_calibration: corrects a live IMU stream with a fitted calibration (docs/design.md section
+// 7). Subscribes imu/data_raw, publishes imu/data_calibrated with linear_acceleration = P (R - O);
 // every other field is passed through. linear_acceleration_covariance: P diag(sigma^2) P^T when
 // the calibration file states the noise (a result with noise_density and sample_rate_hz), else
 // the input's covariance carried through P (P C P^T) when the input states one, else the input's
 // field as it is (unknown: -1 or zeros).
 //
 // Parameters (private): calibration_file (required: a result JSON/YAML or an imu_calib YAML),
-// queue_size (default 1000, both ways), immediate (default true: the message is corrected and published in
-// roscpp's network thread, no hand-off to a spinner thread), coalesce_s (default 0.001: after an
-// idle spell the network thread naps this long so that the next messages are read in one go; 0
-// off; see immediate_callback_queue.h). With immediate false and coalesce_s > 0 the messages go
-// to a queue of the node's own, served by a thread of its own that, once woken by a message, naps
-// coalesce_s and then handles everything that came meanwhile: one wake-up per period instead of
-// one per message (the nodelet's default: it never naps in another nodelet's thread). With
-// immediate false and coalesce_s 0: the node handle's queue (the spinner's, or the nodelet
+// queue_size (default 1000, both ways), immediate (default true: the message is corrected and
+// published in roscpp's network thread, no hand-off to a spinner thread), coalesce_s (default
+// 0.001: after an idle spell the network thread naps this long so that the next messages are read
+// in one go; 0 off; see immediate_callback_queue.h). With immediate false and coalesce_s > 0 the
+// messages go to a queue of the node's own, served by a thread of its own that, once woken by a
+// message, naps coalesce_s and then handles everything that came meanwhile: one wake-up per period
+// instead of one per message (the nodelet's default: it never naps in another nodelet's thread).
+// With immediate false and coalesce_s 0: the node handle's queue (the spinner's, or the nodelet
 // manager's). batch_output (default true for the node, always false in the nodelet; only with
 // immediate true): the corrected messages handled in one wake-up of the network thread go out in
 // one socket write (TCPROS frames back to back, as a subscriber reads them anyway) when the next
@@ -63,7 +63,8 @@ struct ApplyCalibrationOptions {
   bool batch_output = true;
   // Reads the private parameters and the file; throws ParamError naming the parameter (and the
   // file with what is wrong with it).
-  static ApplyCalibrationOptions load(const ros::NodeHandle& pnh, io::ApplyCalibration* calibration);
+  static ApplyCalibrationOptions load(const ros::NodeHandle& pnh,
+                                      io::ApplyCalibration* calibration);
 };
 
 class ApplyCalibrationNode {

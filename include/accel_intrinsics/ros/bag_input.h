@@ -24,8 +24,8 @@ struct BagInputOptions {
   // "/<ns>/imu/data_raw"; a leading '/' asks for that exact topic. See resolve_topic().
   std::string imu_topic = names::kImuTopic;
   std::string command_topic = names::kGimbalCommandTopic;
-  // The per-dwell channels' topics (core::kChannels; the DUT temperature, docs/design.md section 10):
-  // each read when the bag has it (each dwell then records its value); "" never reads one.
+  // The per-dwell channels' topics (core::kChannels; the DUT temperature, docs/design.md section
+  // 10): each read when the bag has it (each dwell then records its value); "" never reads one.
   core::PerChannel<std::string> channel_topics = default_channel_topics();
   // Dwell assembly. The reorder window defaults to 10 s, wider than any shipped configuration
   // (node 0.25 s, simulated stand 5 s): in a bag it costs only memory (window x rate events) and
@@ -67,8 +67,8 @@ struct BagInputOptions {
 
 struct BagInputStats {
   std::string path;
-  std::string imu_topic;      // as resolved in the bag
-  std::string command_topic;  // as resolved in the bag
+  std::string imu_topic;                         // as resolved in the bag
+  std::string command_topic;                     // as resolved in the bag
   core::PerChannel<std::string> channel_topics;  // as resolved in the bag; "" when it has none
   std::uint64_t imu_messages = 0;
   core::PerChannel<std::uint64_t> channel_messages{};
@@ -88,8 +88,8 @@ struct BagInputStats {
   // Positions per phase the controller announced (GimbalCommand::steps; 0 = none seen).
   std::uint32_t steps_announced[3] = {0, 0, 0};
   core::AssemblerCounters counters;
-  std::string reader;  // "chunk scan" or "rosbag::View"
-  std::string topic_note;  // the IMU topic was found by its type (RunTopics::note)
+  std::string reader;       // "chunk scan" or "rosbag::View"
+  std::string topic_note;   // the IMU topic was found by its type (RunTopics::note)
   std::uint32_t files = 1;  // bags read for this run
 };
 

@@ -32,9 +32,11 @@ std::string resolve_topic(const std::string& requested, const std::vector<BagTop
 // ("/stand1/imu/data_raw", "imu/data_raw") -> "/stand1/"; "/" when not namespaced.
 std::string topic_namespace(const std::string& resolved, const std::string& requested);
 
-// An optional topic (a channel's, imu/temperature): "" when no topic of the bag has the requested name (exact
-// or namespaced); otherwise resolve_topic(), which throws for an ambiguous name or another type.
-std::string resolve_optional_topic(const std::string& requested, const std::vector<BagTopic>& topics,
+// An optional topic (a channel's, imu/temperature): "" when no topic of the bag has the requested
+// name (exact or namespaced); otherwise resolve_topic(), which throws for an ambiguous name or
+// another type.
+std::string resolve_optional_topic(const std::string& requested,
+                                   const std::vector<BagTopic>& topics,
                                    const std::string& expected_datatype,
                                    const std::string& preferred_namespace = "");
 

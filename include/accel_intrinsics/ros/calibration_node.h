@@ -24,8 +24,8 @@
 #include <mutex>
 #include <optional>
 #include <string>
-#include <utility>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "accel_intrinsics/GetIntrinsics.h"
@@ -34,9 +34,9 @@
 #include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/run/calibration_run.h"
 #include "accel_intrinsics/io/checkpoint.h"
+#include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/io/result_document.h"
 #include "accel_intrinsics/io/run_directory.h"
-#include "accel_intrinsics/io/exporters.h"
 #include "accel_intrinsics/ros/immediate_callback_queue.h"
 #include "accel_intrinsics/ros/message_batcher.h"
 
@@ -49,8 +49,8 @@ struct CalibrationOptions {
   // The pipeline: model, local_gravity, min_positions_per_phase, analyze, analysis/*,
   // certificate_model (certificate_refit).
   core::CalibrateOptions calibrate;
-  double flush_period_s = 0.05;   // how often the run is ticked (buffered messages released), s
-  double status_period_s = 1.0;   // calibration/status rate, s
+  double flush_period_s = 0.05;  // how often the run is ticked (buffered messages released), s
+  double status_period_s = 1.0;  // calibration/status rate, s
   // Base of the run directories: each run writes into output_dir/<device>/<UTC time>/ (its
   // checkpoint, result.json, intrinsics.yaml, analysis JSON; io/run_directory.h); empty = no files
   std::string output_dir;
@@ -58,7 +58,7 @@ struct CalibrationOptions {
   // the result's device_serial. Read again from the parameter server when a new run starts
   // (supervise --device sets it before the run).
   std::string device_serial = "unnamed";
-  std::string file_prefix;        // prefix of the file names in output_dir
+  std::string file_prefix;                // prefix of the file names in output_dir
   std::vector<io::ExportFormat> exports;  // written into output_dir with each result
   // Lab archive URL (scripts/archive add after each result file; docs/design.md section 13); empty:
   // none. Serial and rig of the record when the budget file's certificate block has none.
@@ -73,7 +73,7 @@ struct CalibrationOptions {
   // (the nodelet's default: one wake-up per period; the node's work never runs in the
   // publisher's thread, which only appends the pointer); 0: the node handle's queue.
   double imu_batch_s = 0.005;
-  bool resume = false;            // reload the checkpoint of output_dir at start
+  bool resume = false;  // reload the checkpoint of output_dir at start
   std::string gimbal_controller = "gimbal_controller";  // the controller's node name (relative)
   // After DONE, wall time without a message or clock tick after which the run is fitted although
   // the reorder window has not passed in stamp time (a replay that ended at DONE).
@@ -106,7 +106,7 @@ class CalibrationNode {
   void on_command(const GimbalCommand::ConstPtr& msg) { handle_command(*msg); }
   void on_imu(const sensor_msgs::Imu::ConstPtr& msg) { handle_imu(*msg); }
   void on_imu_batched(const sensor_msgs::Imu::ConstPtr& msg);  // hands it to imu_batcher_
-  void handle_imu_locked(const sensor_msgs::Imu& msg);          // handle_imu under mutex_
+  void handle_imu_locked(const sensor_msgs::Imu& msg);         // handle_imu under mutex_
   void on_progress(const diagnostic_msgs::DiagnosticStatus::ConstPtr& msg);
   void on_timer(const ros::TimerEvent&);
   // Wall-time watch of a stream that stopped after DONE (see idle_fit_after_s).

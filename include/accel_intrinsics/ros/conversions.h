@@ -10,9 +10,9 @@
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/IntrinsicResult.h"
 #include "accel_intrinsics/ResumeAt.h"
-#include "accel_intrinsics/core/run/calibration_run.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/run/calibration_run.h"
 
 namespace accel_intrinsics {
 

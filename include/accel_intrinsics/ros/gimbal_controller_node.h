@@ -19,9 +19,9 @@
 // topics names them (GimbalDriver::topics()): the node subscribes JointState (ros_joint) or the
 // IMU (manual) for it and publishes its Float64 joint commands. The manual driver waits for the
 // operator at each position in WAIT_OPERATOR (progress carries the request and the target's
-// stage positions, stage_<axis>_deg) until gimbal_controller/continue. Before a phase that needs a manual remount the
-// controller publishes MOVING for the phase's first position (closing the last dwell), turns the
-// stage to that position, and waits in state REMOUNT (progress topic) until
+// stage positions, stage_<axis>_deg) until gimbal_controller/continue. Before a phase that needs a
+// manual remount the controller publishes MOVING for the phase's first position (closing the last
+// dwell), turns the stage to that position, and waits in state REMOUNT (progress topic) until
 // gimbal_controller/continue (std_srvs/Trigger); then the move is issued again and settles.
 #pragma once
 
@@ -39,8 +39,8 @@
 #include "accel_intrinsics/AbortRun.h"
 #include "accel_intrinsics/GimbalCommand.h"
 #include "accel_intrinsics/ResumeAt.h"
-#include "accel_intrinsics/core/run/gimbal_protocol.h"
 #include "accel_intrinsics/core/model/protocol.h"
+#include "accel_intrinsics/core/run/gimbal_protocol.h"
 #include "accel_intrinsics/drivers/gimbal_driver.h"
 #include "accel_intrinsics/drivers/serial_gimbal.h"
 

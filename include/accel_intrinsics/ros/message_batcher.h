@@ -8,7 +8,6 @@
 #pragma once
 
 #include <boost/shared_ptr.hpp>
-
 #include <chrono>
 #include <condition_variable>
 #include <cstddef>
@@ -83,9 +82,9 @@ class MessageBatcher {
   std::mutex mutex_;
   std::condition_variable wake_;
   std::vector<Ptr> pending_;
-  bool idle_ = false;     // serve() waits for a first message
-  bool serving_ = true;   // under mutex_
-  std::thread thread_;    // last: starts after every member above is built
+  bool idle_ = false;    // serve() waits for a first message
+  bool serving_ = true;  // under mutex_
+  std::thread thread_;   // last: starts after every member above is built
 };
 
 }  // namespace accel_intrinsics

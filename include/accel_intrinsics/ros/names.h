@@ -1,4 +1,5 @@
-// Topic, service and node names, all relative so they remap and namespace (docs/design.md section 2).
+// Topic, service and node names, all relative so they remap and namespace (docs/design.md section
+// 2).
 #pragma once
 
 namespace accel_intrinsics {
@@ -29,10 +30,12 @@ constexpr char kAnalysisTopic[] = "calibration/analysis";
 constexpr char kAnalyzeService[] = "calibration/analyze";
 // accel_intrinsics/ResumeAt: continue the protocol at (phase, step, approach), or after it.
 constexpr char kResumeService[] = "gimbal_controller/resume";
-// std_srvs/Trigger: the operator has remounted the DUT by hand; continue (docs/design.md section 10).
+// std_srvs/Trigger: the operator has remounted the DUT by hand; continue (docs/design.md section
+// 10).
 constexpr char kContinueService[] = "gimbal_controller/continue";
 
-// sensor_msgs/Imu: the apply node's output, linear_acceleration = P (R - O) (docs/design.md section 7).
+// sensor_msgs/Imu: the apply node's output, linear_acceleration = P (R - O) (docs/design.md section
+// 7).
 constexpr char kCalibratedImuTopic[] = "imu/data_calibrated";
 
 constexpr char kWorldFrame[] = "world";

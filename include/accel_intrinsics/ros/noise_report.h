@@ -39,5 +39,4 @@ int run_noise_report(const NoiseReportArguments& args, std::ostream& out, std::o
 void read_samples_csv(const std::string& path, std::vector<double>* stamps,
                       std::vector<Eigen::Vector3d>* outputs);
 
-
 }  // namespace accel_intrinsics

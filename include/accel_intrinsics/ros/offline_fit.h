@@ -1,6 +1,6 @@
 // offline_fit as a library: recalibrates from a recorded bag or a CSV position table, without
-// playback (docs/design.md section 2, "Offline tool"). src/nodes/offline_fit.cpp is its command line;
-// tests call run_offline_fit() in process.
+// playback (docs/design.md section 2, "Offline tool"). src/nodes/offline_fit.cpp is its command
+// line; tests call run_offline_fit() in process.
 //
 //   offline_fit (--bag FILE|DIR [--bag ...] | --csv FILE | --samples FILE) [--unknown-orientations]
 //               [--rest-min-s SECONDS] [--imu-topic T] [--command-topic T]
@@ -13,11 +13,11 @@
 // that determines S and O, and a gimbal run missing a phase when the others determine S: the
 // result is then marked incomplete, naming the phase. eq4 needs the three phases.
 //
-// A hand tumble (docs/design.md section 11): --samples FILE (t,x,y,z), or a bag with the IMU topic and
-// no gimbal commands: rests are found in the stream (core/rest_detection.h) and fitted by
-// |P (mean - O)| = g (core/tumble.h); the result says "method": "tumble", its "frame", every rest
-// and rejected span, the coverage (an incomplete one names the missing direction) and the next
-// pose to try. --unknown-orientations fits a gimbal run's dwells the same way.
+// A hand tumble (docs/design.md section 11): --samples FILE (t,x,y,z), or a bag with the IMU topic
+// and no gimbal commands: rests are found in the stream (core/rest_detection.h) and fitted by |P
+// (mean - O)| = g (core/tumble.h); the result says "method": "tumble", its "frame", every rest and
+// rejected span, the coverage (an incomplete one names the missing direction) and the next pose to
+// try. --unknown-orientations fits a gimbal run's dwells the same way.
 //
 // A run split over several bags (rosbag record --split) is read as one: --bag repeated, or a
 // directory of bags. Before fitting a bag, the clock check (core/clock_check.h) makes sure the
@@ -75,8 +75,8 @@ struct OfflineFitArguments {
   std::string csv;
   // Raw samples t,x,y,z (core/samples_file.h): a hand tumble, rests found in the stream.
   std::string samples;
-  // Fit the dwells of a gimbal bag or table as rests of unknown orientation (docs/design.md section 11):
-  // with compare_results, tells a gimbal angle error from a device property.
+  // Fit the dwells of a gimbal bag or table as rests of unknown orientation (docs/design.md section
+  // 11): with compare_results, tells a gimbal angle error from a device property.
   bool unknown_orientations = false;
   double rest_min_s = 2.0;  // shortest rest kept (samples, or a bag without gimbal commands)
   bool rest_min_s_given = false;
@@ -91,12 +91,12 @@ struct OfflineFitArguments {
   std::string json_out;  // "-": standard output (the text report then goes to `err`)
   std::string csv_out;
   double settle_discard_s = 0.0;
-  double imu_time_offset_s = 0.0;  // added to every IMU stamp
+  double imu_time_offset_s = 0.0;     // added to every IMU stamp
   std::string output_unit = "m/s^2";  // unit of the raw outputs (counts, V, ...)
   bool skip_clock_check = false;
   std::vector<std::string> exports;  // "NAME=FILE", each parsed by io::parse_export_spec
-  std::string budget;      // uncertainty budget file (YAML); empty: type A only
-  std::string report_pdf;  // certificate PDF; empty: none
+  std::string budget;                // uncertainty budget file (YAML); empty: type A only
+  std::string report_pdf;            // certificate PDF; empty: none
   // Residual CSV for scripts/plot_residuals (offline_fit_residuals.h); empty: none.
   std::string residuals_csv;
   bool report_draft = false;  // --draft: the PDF even when refused, DRAFT on every page

@@ -57,7 +57,6 @@ inline void require(bool ok, const ros::NodeHandle& nh, const std::string& name,
   if (!ok) throw ParamError("parameter " + param_name(nh, name) + ": " + what);
 }
 
-
 // A 3x3 matrix given as a list of 9 numbers, row-major (S: u then v then w).
 bool read_matrix3(const ros::NodeHandle& nh, const std::string& name, Eigen::Matrix3d* value);
 // A 3-vector given as a list of 3 numbers.

@@ -21,8 +21,8 @@ namespace accel_intrinsics {
 // into `run` and returns the run's actions (none when
 // there is no checkpoint: a fresh run). A checkpoint that cannot be read is not silently replaced
 // by a fresh run: throws ParamError naming `resume_param`.
-core::RunActions restore_from_checkpoint(io::CheckpointFiles* files,
-                                         const std::string& output_dir, core::CalibrationRun* run,
+core::RunActions restore_from_checkpoint(io::CheckpointFiles* files, const std::string& output_dir,
+                                         core::CalibrationRun* run,
                                          const std::string& resume_param);
 
 // The run's Log action as a ROS log line at its level ("repeating" ones throttled).
@@ -31,8 +31,8 @@ void log_run_action(const core::RunAction& action);
 void write_exports(const io::CheckpointFiles& files, const std::vector<io::ExportFormat>& formats,
                    const core::CalibrationReport& report);
 
-// result.json and intrinsics.yaml, then the exports; nothing when the files are disabled (no output_dir).
-// Returns whether intrinsics.yaml was written.
+// result.json and intrinsics.yaml, then the exports; nothing when the files are disabled (no
+// output_dir). Returns whether intrinsics.yaml was written.
 bool write_result_files(const io::CheckpointFiles& files,
                         const std::vector<io::ExportFormat>& formats,
                         const core::CalibrationReport& report, const io::ResultContext& context);

@@ -1,6 +1,6 @@
-// The calibration node in mode: tumble (docs/design.md section 11): no gimbal controller. A thin shell
-// around core::TumbleSession: imu/data_raw in; rests found as they end; after each rest (and once
-// a second) the progress on calibration/tumble_progress (std_msgs/String, latched, the JSON of
+// The calibration node in mode: tumble (docs/design.md section 11): no gimbal controller. A thin
+// shell around core::TumbleSession: imu/data_raw in; rests found as they end; after each rest (and
+// once a second) the progress on calibration/tumble_progress (std_msgs/String, latched, the JSON of
 // io::tumble_progress_json: rests, coverage, current relative uncertainties, the next pose in
 // words); the fit on calibration/get_intrinsics or when ~target_relative_std is reached, published
 // on the latched calibration/result and written to output_dir (intrinsics.yaml, exports) as the
@@ -59,7 +59,7 @@ class TumbleCalibrationNode {
   IntrinsicResult result_;
   ros::Subscriber imu_sub_;
   ros::Publisher progress_pub_, result_pub_;
-  ros::Publisher dwell_pub_;        // calibration/dwell: each rest found
+  ros::Publisher dwell_pub_;         // calibration/dwell: each rest found
   std::size_t rests_published_ = 0;  // rows of session_.table() published on it
   ros::ServiceServer get_srv_, reset_srv_;
   ros::WallTimer progress_timer_;

@@ -20,7 +20,9 @@ std::string ClockCheckResult::message(const std::string& fix_option) const {
   return s.str();
 }
 
-ClockCheck::ClockCheck(const ClockCheckOptions& options) : options_(options) { reset(); }
+ClockCheck::ClockCheck(const ClockCheckOptions& options) : options_(options) {
+  reset();
+}
 
 void ClockCheck::reset() {
   commands_.clear();
@@ -94,8 +96,9 @@ struct Binned {
 ClockCheckResult ClockCheck::result() const {
   ClockCheckResult r;
   std::vector<GimbalEvent> commands = commands_;
-  std::stable_sort(commands.begin(), commands.end(),
-                   [](const GimbalEvent& a, const GimbalEvent& b) { return a.stamp_s < b.stamp_s; });
+  std::stable_sort(
+      commands.begin(), commands.end(),
+      [](const GimbalEvent& a, const GimbalEvent& b) { return a.stamp_s < b.stamp_s; });
   // The gimbal's moves (MOVING to the next SETTLED or DONE) and dwells (SETTLED to the next
   // command).
   std::vector<Move> moves;
@@ -119,7 +122,8 @@ ClockCheckResult ClockCheck::result() const {
 
   std::uint64_t samples = 0;
   for (const auto& bin : bins_) samples += bin.second.n;
-  const double span_s = static_cast<double>(bins_.rbegin()->first - bins_.begin()->first + 1) * options_.bin_s;
+  const double span_s =
+      static_cast<double>(bins_.rbegin()->first - bins_.begin()->first + 1) * options_.bin_s;
   if (static_cast<double>(samples) / span_s < options_.min_rate_hz) {
     r.not_checked_why = "IMU rate below " + std::to_string(static_cast<int>(options_.min_rate_hz)) +
                         " Hz: too sparse to see the moves";
@@ -142,8 +146,8 @@ ClockCheckResult ClockCheck::result() const {
     b.cum_n[k + 1] += b.cum_n[k];
   }
   // Motion at boundary k: change of the mean between blocks [k-L, k) and [k, k+L).
-  const auto block = static_cast<std::size_t>(
-      std::max(1.0, std::round(options_.block_s / options_.bin_s)));
+  const auto block =
+      static_cast<std::size_t>(std::max(1.0, std::round(options_.block_s / options_.bin_s)));
   b.motion.assign(b.size + 1, 0.0);
   std::vector<double> seen;
   for (std::size_t k = block; k + block <= b.size; ++k) {

@@ -72,7 +72,8 @@ NoiseEntry correlated_noise_entry(const PositionTable& table, const FitResult& f
   const bool explained = model_gap.summary.p_value >= options.alpha;
   e.named = exceeds_white && explained;
   if (e.named) {
-    e.reason = "the residuals exceed the white-noise prediction and the noise model (" + e.noise_model +
+    e.reason = "the residuals exceed the white-noise prediction and the noise model (" +
+               e.noise_model +
                ") explains them; no catalog effect explains them better out of sample";
   } else if (!exceeds_white) {
     e.reason = "the residuals are consistent with white noise";

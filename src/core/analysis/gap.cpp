@@ -1,7 +1,5 @@
 // The gap between the measurements and the digital twin (discrepancy.h compute_gap), its
 // cross-validated form, and the slow part refitted to the run's residuals.
-#include "accel_intrinsics/core/analysis/discrepancy.h"
-
 #include <ceres/jet.h>
 
 #include <Eigen/Dense>
@@ -18,6 +16,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "accel_intrinsics/core/analysis/discrepancy.h"
 #include "accel_intrinsics/core/noise/slow_part_fit.h"
 #include "discrepancy_internal.h"
 
@@ -252,8 +251,7 @@ CrossValidatedGap cross_validated_gap(const PositionTable& table, const FitOptio
       Eigen::MatrixXd C = Eigen::MatrixXd::Zero(m, m);
       for (Eigen::Index a = 0; a < m; ++a) {
         const std::size_t i = test[static_cast<std::size_t>(a)];
-        r(a) = table.rows[i].mean(s) -
-               predict_outputs(device, geoms[i], options.local_gravity)(s);
+        r(a) = table.rows[i].mean(s) - predict_outputs(device, geoms[i], options.local_gravity)(s);
         C(a, a) = se[i](s) * se[i](s);
         if (options.noise_model.white()) continue;
         for (Eigen::Index b = 0; b <= a; ++b) {

@@ -8,8 +8,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "accel_intrinsics/core/model/model.h"
 #include "accel_intrinsics/core/model/gimbal_kinematics.h"
+#include "accel_intrinsics/core/model/model.h"
 
 namespace accel_intrinsics {
 namespace core {

@@ -1,8 +1,6 @@
 // Screening of the candidate effects at the current fit (discrepancy.h, steps 3 and 4 of
 // analyze()): score tests on the model's Jacobian, the step-down max-T calibration, the default
 // candidates and the detection thresholds.
-#include "accel_intrinsics/core/analysis/discrepancy.h"
-
 #include <ceres/jet.h>
 
 #include <Eigen/Dense>
@@ -19,6 +17,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "accel_intrinsics/core/analysis/discrepancy.h"
 #include "accel_intrinsics/core/fit/preconditions.h"
 #include "discrepancy_internal.h"
 
@@ -213,8 +212,7 @@ double ambiguity_threshold_corr(const Screening& s, int a_row, int b_row) {
 using namespace analysis_detail;
 
 std::vector<Effect> default_candidates(const PositionTable& table, double min_temperature_span_k) {
-  const RunConditions run =
-      run_conditions(table, dwell_geometries(table), min_temperature_span_k);
+  const RunConditions run = run_conditions(table, dwell_geometries(table), min_temperature_span_k);
   std::vector<Effect> out;
   for (const EffectInfo& info : effect_catalog()) {
     for (int target : effect_targets(info.kind)) {

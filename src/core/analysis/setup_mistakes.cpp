@@ -20,7 +20,9 @@ std::string SetupMistake::label() const {
   return target.empty() ? name : name + "[" + target + "]";
 }
 
-std::string SetupMistake::text() const { return label() + ": " + finding + "; fix: " + fix; }
+std::string SetupMistake::text() const {
+  return label() + ": " + finding + "; fix: " + fix;
+}
 
 namespace {
 
@@ -46,7 +48,9 @@ Snap snap(const Eigen::Vector3d& v, double tolerance_deg) {
   return s;
 }
 
-Snap exact(const Eigen::Vector3d& unit_axis) { return snap(unit_axis, 1.0); }
+Snap exact(const Eigen::Vector3d& unit_axis) {
+  return snap(unit_axis, 1.0);
+}
 
 std::string fmt(double v, int digits = 3) {
   std::ostringstream s;
@@ -81,8 +85,7 @@ PhaseVerdict judge_phase(Phase p, const PhaseResponse& r, const SetupOptions& o)
   if (!s0.ok || !s90.ok || s0.axis == s90.axis) {
     SetupMistake m{"pose_unclear", name,
                    "phase " + name + " is not a quarter turn between DUT axes: " + seen,
-                   "check phases." + name +
-                       ".hold in the gimbal's axis map (the DUT's " + name +
+                   "check phases." + name + ".hold in the gimbal's axis map (the DUT's " + name +
                        " axis must lie on the turning axis, held horizontal) and that the IMU's "
                        "axes lie along the fixture's"};
     v.mistakes.push_back(m);
@@ -104,24 +107,25 @@ PhaseVerdict judge_phase(Phase p, const PhaseResponse& r, const SetupOptions& o)
                                 "gravity along " +
                                 e0.name() + " of the DUT"});
   } else if (n_seen.isApprox(-n_expected)) {
-    v.mistakes.push_back({"axis_sign", name,
-                          "phase " + name + " turns the DUT the wrong way about its " + name +
-                              " axis: " + seen,
-                          "negate phases." + name +
-                              ".sign in the gimbal's axis map (grbl/phases, smc100/phases)"});
+    v.mistakes.push_back(
+        {"axis_sign", name,
+         "phase " + name + " turns the DUT the wrong way about its " + name + " axis: " + seen,
+         "negate phases." + name + ".sign in the gimbal's axis map (grbl/phases, smc100/phases)"});
     if (!(s0.axis == e0.axis && s0.sign == e0.sign))
       v.mistakes.push_back({"zero_offset", name, "and it starts elsewhere: " + seen,
-                            "set phases." + name + ".zero_deg so that alpha = 0 puts gravity "
-                            "along " + e0.name()});
+                            "set phases." + name +
+                                ".zero_deg so that alpha = 0 puts gravity "
+                                "along " +
+                                e0.name()});
   } else {
     const std::string about = kAxisLetters[turn.axis];
-    v.mistakes.push_back(
-        {"axes_swapped", name,
-         "phase " + name + " turns the DUT about its " + about + " axis, not its " + name +
-             " axis: " + seen,
-         "the axis map's phases." + name + " (axis and hold) turns what phases." + about +
-             " should: swap the two entries, or change phases." + name +
-             ".hold so that the DUT's " + name + " axis lies on the turning axis"});
+    v.mistakes.push_back({"axes_swapped", name,
+                          "phase " + name + " turns the DUT about its " + about +
+                              " axis, not its " + name + " axis: " + seen,
+                          "the axis map's phases." + name + " (axis and hold) turns what phases." +
+                              about + " should: swap the two entries, or change phases." + name +
+                              ".hold so that the DUT's " + name +
+                              " axis lies on the turning axis"});
   }
   return v;
 }
@@ -183,16 +187,19 @@ Judgement judge(const SetupObservation& obs, const SetupOptions& o) {
                                fmt(o.local_gravity, 6) + " in m/s^2)";
       if (g_out >= 0.5 && g_out <= 2.0) {
         m.finding = seen + ": the outputs are in g, not m/s^2";
-        m.fix = "convert to m/s^2 in the IMU's driver (REP 145), or set output_unit: g "
-                "(rig.launch output_unit:=g)";
+        m.fix =
+            "convert to m/s^2 in the IMU's driver (REP 145), or set output_unit: g "
+            "(rig.launch output_unit:=g)";
       } else if (g_out > 20.0) {
         m.finding = seen + ": the outputs are counts (or another unit), not m/s^2";
-        m.fix = "set output_unit: counts (rig.launch output_unit:=counts; responsivities in "
-                "counts per m/s^2), or convert to m/s^2 in the IMU's driver";
+        m.fix =
+            "set output_unit: counts (rig.launch output_unit:=counts; responsivities in "
+            "counts per m/s^2), or convert to m/s^2 in the IMU's driver";
       } else {
         m.finding = seen + ": the outputs are neither m/s^2 nor g";
-        m.fix = "set output_unit to the outputs' unit (rig.launch output_unit:=...), or convert "
-                "to m/s^2 in the IMU's driver";
+        m.fix =
+            "set output_unit to the outputs' unit (rig.launch output_unit:=...), or convert "
+            "to m/s^2 in the IMU's driver";
       }
       j.stand.push_back(m);
     }
@@ -237,7 +244,8 @@ std::vector<SetupMistake> judge_setup(const SetupObservation& observation,
                                       const SetupOptions& options) {
   const Judgement j = judge(observation, options);
   std::vector<SetupMistake> out = j.stand;
-  for (const PhaseVerdict& v : j.phases) out.insert(out.end(), v.mistakes.begin(), v.mistakes.end());
+  for (const PhaseVerdict& v : j.phases)
+    out.insert(out.end(), v.mistakes.begin(), v.mistakes.end());
   return out;
 }
 

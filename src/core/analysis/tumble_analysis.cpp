@@ -10,8 +10,8 @@
 #include <memory>
 
 #include "accel_intrinsics/core/analysis/discrepancy.h"
-#include "accel_intrinsics/core/model/model.h"
 #include "accel_intrinsics/core/fit/tumble.h"
+#include "accel_intrinsics/core/model/model.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -37,8 +37,7 @@ class RestMeanResidual {
     std::vector<T> values(terms_->size());
     for (std::size_t i = 0; i < terms_->size(); ++i) values[i] = p[3 + i][0];
     const Eigen::Matrix<T, 3, 1> f(T(g_) * p[2][0], T(g_) * p[2][1], T(g_) * p[2][2]);
-    const Eigen::Matrix<T, 3, 1> R =
-        outputs_for_force(S, p[1], *terms_, values.data(), f, geom_);
+    const Eigen::Matrix<T, 3, 1> R = outputs_for_force(S, p[1], *terms_, values.data(), f, geom_);
     for (int s = 0; s < 3; ++s) residuals[s] = (R(s) - T(mean_(s))) * T(inverse_se_(s));
     return true;
   }
@@ -50,12 +49,12 @@ class RestMeanResidual {
   double g_;
 };
 
-// All rests at once, whitened across rests (generalized least squares under a slow bias, docs/design.md
-// section 12): every rest's normalized residuals (RestMeanResidual, interleaved 3 i + s), then per
-// accelerometer s the vector (z_0s, z_1s, ...) times L_s^-1 by forward substitution, L_s the
-// Cholesky factor of the rest means' correlation (noise.h DwellCorrelation). One residual block,
-// since the whitening couples every rest. Parameter blocks: S lower (6), O (3), the n directions
-// (3 each), then one per effect.
+// All rests at once, whitened across rests (generalized least squares under a slow bias,
+// docs/design.md section 12): every rest's normalized residuals (RestMeanResidual, interleaved 3 i
+// + s), then per accelerometer s the vector (z_0s, z_1s, ...) times L_s^-1 by forward substitution,
+// L_s the Cholesky factor of the rest means' correlation (noise.h DwellCorrelation). One residual
+// block, since the whitening couples every rest. Parameter blocks: S lower (6), O (3), the n
+// directions (3 each), then one per effect.
 class WhitenedRestMeans {
  public:
   static constexpr int kStride = RestMeanResidual::kStride;
@@ -124,9 +123,8 @@ double p_value(double statistic, double reduced_chi2, int dof) {
 // The residual blocks of fit_tumble_with_effects: one per rest (white), or one for all rests,
 // whitened across them (GLS, `corr` set). Directions on the sphere.
 void add_rests(ceres::Problem& problem, const std::vector<RestMeanResidual>& rests,
-               const std::shared_ptr<const DwellCorrelation>& corr, double* lower,
-               double* offsets, std::vector<std::array<double, 3>>& directions,
-               std::vector<double>& values) {
+               const std::shared_ptr<const DwellCorrelation>& corr, double* lower, double* offsets,
+               std::vector<std::array<double, 3>>& directions, std::vector<double>& values) {
   const std::size_t n = rests.size();
   const std::size_t k = values.size();
   if (!corr) {
@@ -146,8 +144,9 @@ void add_rests(ceres::Problem& problem, const std::vector<RestMeanResidual>& res
     }
     return;
   }
-  auto* cost = new ceres::DynamicAutoDiffCostFunction<WhitenedRestMeans, WhitenedRestMeans::kStride>(
-      new WhitenedRestMeans(rests, corr, k));
+  auto* cost =
+      new ceres::DynamicAutoDiffCostFunction<WhitenedRestMeans, WhitenedRestMeans::kStride>(
+          new WhitenedRestMeans(rests, corr, k));
   cost->AddParameterBlock(6);
   cost->AddParameterBlock(3);
   for (std::size_t i = 0; i < n; ++i) cost->AddParameterBlock(3);
@@ -226,10 +225,12 @@ FitResult fit_tumble_with_effects(const PositionTable& table, const std::vector<
   const int cols = globals + 2 * static_cast<int>(n);
   if (crs.num_cols != cols)
     throw FitError("tumble with effects: unexpected Jacobian layout (" +
-                   std::to_string(crs.num_cols) + " columns, expected " + std::to_string(cols) + ")");
+                   std::to_string(crs.num_cols) + " columns, expected " + std::to_string(cols) +
+                   ")");
   Eigen::MatrixXd Jt = Eigen::MatrixXd::Zero(crs.num_rows, cols);
   for (int r = 0; r < crs.num_rows; ++r)
-    for (int idx = crs.rows[r]; idx < crs.rows[r + 1]; ++idx) Jt(r, crs.cols[idx]) = crs.values[idx];
+    for (int idx = crs.rows[r]; idx < crs.rows[r + 1]; ++idx)
+      Jt(r, crs.cols[idx]) = crs.values[idx];
   const Eigen::MatrixXd N = Jt.transpose() * Jt;
   const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(N);
   if (cod.rank() < cols)
@@ -309,7 +310,8 @@ TumbleAnalysis analyze_tumble(const PositionTable& table, const TumbleAnalysisOp
     std::vector<TumbleEffectTest> tests;
     for (const Effect& candidate : candidates) {
       bool taken = false;
-      for (const Effect& e : named) taken |= e.kind == candidate.kind && e.target == candidate.target;
+      for (const Effect& e : named)
+        taken |= e.kind == candidate.kind && e.target == candidate.target;
       if (taken) continue;
       std::vector<Effect> trial = named;
       trial.push_back(candidate);
@@ -329,8 +331,9 @@ TumbleAnalysis analyze_tumble(const PositionTable& table, const TumbleAnalysisOp
     }
     if (tests.empty()) break;
     // Holm: the j-th smallest p times (m - j), running maximum.
-    std::sort(tests.begin(), tests.end(),
-              [](const TumbleEffectTest& a, const TumbleEffectTest& b) { return a.p_raw < b.p_raw; });
+    std::sort(tests.begin(), tests.end(), [](const TumbleEffectTest& a, const TumbleEffectTest& b) {
+      return a.p_raw < b.p_raw;
+    });
     double running = 0.0;
     for (std::size_t j = 0; j < tests.size(); ++j) {
       running = std::max(running, std::min(1.0, (tests.size() - j) * tests[j].p_raw));

@@ -9,9 +9,9 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "accel_intrinsics/core/fit/tumble.h"
 #include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/model/intrinsics.h"
-#include "accel_intrinsics/core/fit/tumble.h"
 
 namespace accel_intrinsics {
 namespace core {

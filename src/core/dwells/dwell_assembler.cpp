@@ -13,8 +13,8 @@ constexpr double kNegInf = -std::numeric_limits<double>::infinity();
 std::string describe(const GimbalEvent& e) {
   static const char* const kStates[] = {"MOVING", "SETTLED", "DONE"};
   std::ostringstream s;
-  s << kStates[static_cast<int>(e.state) % 3] << " (phase " << phase_name(e.phase) << ", step " << e.step
-    << ") at t=" << e.stamp_s;
+  s << kStates[static_cast<int>(e.state) % 3] << " (phase " << phase_name(e.phase) << ", step "
+    << e.step << ") at t=" << e.stamp_s;
   return s.str();
 }
 }  // namespace
@@ -26,7 +26,9 @@ bool DwellAssembler::Later::operator()(const Event& a, const Event& b) const {
   return a.sequence > b.sequence;
 }
 
-DwellAssembler::DwellAssembler(const AssemblerOptions& options) : options_(options) { reset(); }
+DwellAssembler::DwellAssembler(const AssemblerOptions& options) : options_(options) {
+  reset();
+}
 
 void DwellAssembler::reset() {
   pending_ = decltype(pending_)();
@@ -55,7 +57,8 @@ CompletedRows DwellAssembler::add_command(const GimbalEvent& event) {
   if (event.stamp_s < released_until_s_) {
     // Too late to put in order: the samples around it have been assigned already.
     ++counters_.commands_out_of_order;
-    counters_.last_warning = "gimbal command " + describe(event) + " arrived after its stamp was processed";
+    counters_.last_warning =
+        "gimbal command " + describe(event) + " arrived after its stamp was processed";
   }
   push(Event{event.stamp_s, next_sequence_++, event}, &out);
   return out;
@@ -106,7 +109,9 @@ CompletedRows DwellAssembler::flush_until(double stamp_s) {
   return out;
 }
 
-CompletedRows DwellAssembler::flush() { return flush_until(std::numeric_limits<double>::infinity()); }
+CompletedRows DwellAssembler::flush() {
+  return flush_until(std::numeric_limits<double>::infinity());
+}
 
 void DwellAssembler::release_until(double stamp_s, CompletedRows* out) {
   while (!pending_empty()) {
@@ -123,7 +128,8 @@ void DwellAssembler::release_until(double stamp_s, CompletedRows* out) {
     if (event.stamp_s > released_until_s_) released_until_s_ = event.stamp_s;
     process(event, out);
   }
-  if (stamp_s > released_until_s_ && pending_empty() && std::isfinite(stamp_s)) released_until_s_ = stamp_s;
+  if (stamp_s > released_until_s_ && pending_empty() && std::isfinite(stamp_s))
+    released_until_s_ = stamp_s;
 }
 
 void DwellAssembler::process(const Event& event, CompletedRows* out) {
@@ -157,7 +163,8 @@ void DwellAssembler::process_command(const GimbalEvent& command, CompletedRows* 
   if (!std::isfinite(table_.time_origin_s)) table_.time_origin_s = command.stamp_s;
   if (done_) {
     ++counters_.commands_out_of_order;
-    counters_.last_warning = "gimbal command " + describe(command) + " after DONE ignored (call reset first)";
+    counters_.last_warning =
+        "gimbal command " + describe(command) + " after DONE ignored (call reset first)";
     return;
   }
   switch (command.state) {
@@ -169,11 +176,14 @@ void DwellAssembler::process_command(const GimbalEvent& command, CompletedRows* 
     case GimbalState::Settled:
       if (in_dwell_) {
         ++counters_.commands_out_of_order;
-        counters_.last_warning = "gimbal command " + describe(command) + " while already settled: previous dwell closed";
+        counters_.last_warning =
+            "gimbal command " + describe(command) + " while already settled: previous dwell closed";
         close_dwell(command.stamp_s, out);
-      } else if (!have_moving_ || last_moving_.phase != command.phase || last_moving_.step != command.step) {
+      } else if (!have_moving_ || last_moving_.phase != command.phase ||
+                 last_moving_.step != command.step) {
         ++counters_.commands_out_of_order;
-        counters_.last_warning = "gimbal command " + describe(command) + " without a MOVING to the same position";
+        counters_.last_warning =
+            "gimbal command " + describe(command) + " without a MOVING to the same position";
       }
       in_dwell_ = true;
       dwell_command_ = command;
@@ -250,7 +260,8 @@ void DwellAssembler::close_dwell(double end_stamp_s, CompletedRows* out) {
   out->push_back(row);
 }
 
-bool DwellAssembler::current_dwell(Phase* phase, std::uint32_t* step, std::uint64_t* samples) const {
+bool DwellAssembler::current_dwell(Phase* phase, std::uint32_t* step,
+                                   std::uint64_t* samples) const {
   if (!in_dwell_) return false;
   if (phase) *phase = dwell_command_.phase;
   if (step) *step = dwell_command_.step;

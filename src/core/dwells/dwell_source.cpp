@@ -11,7 +11,9 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // The first stamp after `t_s`: a command there ends a dwell after the sample at t_s.
-double just_after(double t_s) { return std::nextafter(t_s, kInf); }
+double just_after(double t_s) {
+  return std::nextafter(t_s, kInf);
+}
 
 void append(CompletedRows* to, const CompletedRows& from) {
   to->insert(to->end(), from.begin(), from.end());
@@ -65,7 +67,9 @@ CompletedRows CommandedDwellSource::add_sample(const ImuSample& sample) {
 CompletedRows CommandedDwellSource::add_channel_sample(const ChannelSample& reading) {
   return assembler_->add_channel_sample(reading);
 }
-CompletedRows CommandedDwellSource::finish() { return assembler_->flush(); }
+CompletedRows CommandedDwellSource::finish() {
+  return assembler_->flush();
+}
 
 // ---- Detected -----------------------------------------------------------------------------------
 
@@ -104,8 +108,7 @@ void DetectedDwellSource::release_until(double stamp_s, CompletedRows* rows) {
   // Samples and channel readings in stamp order (a reading before a sample at equal stamps).
   while (true) {
     const bool sample = !held_.empty() && held_.front().stamp_s < stamp_s;
-    const bool reading =
-        !held_readings_.empty() && held_readings_.front().stamp_s < stamp_s;
+    const bool reading = !held_readings_.empty() && held_readings_.front().stamp_s < stamp_s;
     if (!sample && !reading) return;
     if (reading && (!sample || held_readings_.front().stamp_s <= held_.front().stamp_s)) {
       append(rows, assembler_->add_channel_sample(held_readings_.front()));

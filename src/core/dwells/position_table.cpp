@@ -43,9 +43,9 @@ const char* const kDirectionColumns = ",f_x,f_y,f_z";
 namespace {
 
 constexpr int kColumns = 12;
-const char* const kColumnNames[15] = {"phase", "step",  "angle_rad", "t_start", "t_end",
-                                      "n",     "mean_u", "mean_v",   "mean_w",  "std_u",
-                                      "std_v", "std_w",  "f_x",      "f_y",     "f_z"};
+const char* const kColumnNames[15] = {"phase", "step",   "angle_rad", "t_start", "t_end",
+                                      "n",     "mean_u", "mean_v",    "mean_w",  "std_u",
+                                      "std_v", "std_w",  "f_x",       "f_y",     "f_z"};
 
 std::string trim(const std::string& s) {
   const auto begin = s.find_first_not_of(" \t\r\n");
@@ -106,8 +106,8 @@ std::string expected_header() {
 struct FieldLayout {
   TableColumns columns;
   int count = kColumns;
-  int direction = -1;                 // index of f_x
-  PerChannel<int> channel_field{};    // index of each channel's column, -1 without
+  int direction = -1;               // index of f_x
+  PerChannel<int> channel_field{};  // index of each channel's column, -1 without
 };
 
 FieldLayout layout_of(const std::string& header, const std::string& source, std::size_t line) {
@@ -129,9 +129,11 @@ FieldLayout layout_of(const std::string& header, const std::string& source, std:
   // The channel columns follow, in any order, each at most once.
   for (; k < names.size(); ++k) {
     const ChannelSpec* spec = channel_by_column(trim(names[k]));
-    if (spec == nullptr) fail(source, line, "unknown column '" + trim(names[k]) + "'; " + expected_header());
+    if (spec == nullptr)
+      fail(source, line, "unknown column '" + trim(names[k]) + "'; " + expected_header());
     const std::size_t c = channel_index(spec->id);
-    if (layout.columns.channels[c]) fail(source, line, std::string("column ") + spec->column + " twice");
+    if (layout.columns.channels[c])
+      fail(source, line, std::string("column ") + spec->column + " twice");
     layout.columns.channels[c] = true;
     layout.channel_field[c] = kColumns + static_cast<int>(k);
   }
@@ -206,8 +208,8 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
     // Known orientation: f_x,f_y,f_z all given (all empty: a gimbal row).
     if (layout.direction >= 0) {
       const int d = layout.direction;
-      const bool any = !trim(fields[d]).empty() || !trim(fields[d + 1]).empty() ||
-                       !trim(fields[d + 2]).empty();
+      const bool any =
+          !trim(fields[d]).empty() || !trim(fields[d + 1]).empty() || !trim(fields[d + 2]).empty();
       if (any) {
         for (int k = 0; k < 3; ++k)
           row.direction(k) =
@@ -231,7 +233,8 @@ PositionTable read_position_table(std::istream& in, const std::string& source_na
     } else if (phase != "-" && !parse_phase(phase, &row.phase)) {
       fail(source_name, line_number,
            "field phase must be x, y or z (or - for a known direction f_x,f_y,f_z or a rest of "
-           "unknown orientation), got '" + phase + "'");
+           "unknown orientation), got '" +
+               phase + "'");
     }
     const std::uint64_t step = parse_count(fields[1], source_name, line_number, kColumnNames[1]);
     if (step > std::numeric_limits<std::uint32_t>::max())
@@ -284,8 +287,8 @@ PositionTable read_position_table_file(const std::string& path) {
 void write_position_row(std::ostream& out, const DwellRecord& row, const TableColumns& columns) {
   const auto precision = out.precision(std::numeric_limits<double>::max_digits10);
   out << (row.has_direction || row.orientation_unknown ? "-" : phase_name(row.phase)) << ','
-      << row.step << ','
-      << row.angle_rad << ',' << row.t_start_s << ',' << row.t_end_s << ',' << row.n;
+      << row.step << ',' << row.angle_rad << ',' << row.t_start_s << ',' << row.t_end_s << ','
+      << row.n;
   for (int k = 0; k < 3; ++k) out << ',' << row.mean(k);
   for (int k = 0; k < 3; ++k) out << ',' << row.std(k);
   if (columns.directions) {
@@ -419,8 +422,8 @@ SupersededRows find_remeasured_rows(const PositionTable& table) {
     const std::size_t visits = b - a + 1;
     if (visits > 1) {
       const std::uint32_t step = rows[a].step;
-      const bool lower_before = a == 0 || !gimbal(a - 1) || rows[a - 1].phase != rows[a].phase ||
-                                rows[a - 1].step < step;
+      const bool lower_before =
+          a == 0 || !gimbal(a - 1) || rows[a - 1].phase != rows[a].phase || rows[a - 1].step < step;
       const bool lower_after = b + 1 < rows.size() && gimbal(b + 1) &&
                                rows[b + 1].phase == rows[a].phase && rows[b + 1].step < step;
       const std::size_t kept = lower_before && lower_after ? 2 : 1;  // the turn: up and down

@@ -23,8 +23,8 @@ std::string seconds(double s) {
 
 double quantile_of(std::vector<double> values, double q) {
   if (values.empty()) return 0.0;
-  const std::size_t k = std::min(values.size() - 1,
-                                 static_cast<std::size_t>(q * static_cast<double>(values.size())));
+  const std::size_t k =
+      std::min(values.size() - 1, static_cast<std::size_t>(q * static_cast<double>(values.size())));
   std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
   return values[k];
 }
@@ -123,7 +123,9 @@ void RestDetector::set_quiet_std(const Eigen::Vector3d& quiet_std) {
   quiet_std_ = quiet_std;
 }
 
-void RestDetector::start_blocks() { block_n_ = block_samples_for(options_.block_s, rate_hz_); }
+void RestDetector::start_blocks() {
+  block_n_ = block_samples_for(options_.block_s, rate_hz_);
+}
 
 // The longest gap between two trimmed still runs that may still be one rest: the disturbance
 // itself, the trims on both sides, and a block of misalignment on each side.
@@ -166,9 +168,8 @@ void RestDetector::add(double t_s, const Eigen::Vector3d& x) {
   // A gap in the stream ends the block and the run: nothing is known about the gap.
   if (samples_ > 0 && t_s - last_t_s_ > options_.gap_factor / rate_hz_) {
     if (in_run_) end_run();
-    rejected_.push_back(RejectedSpan{last_t_s_, t_s,
-                                     "gap in the stream: " + seconds(t_s - last_t_s_) +
-                                         " without samples"});
+    rejected_.push_back(RejectedSpan{
+        last_t_s_, t_s, "gap in the stream: " + seconds(t_s - last_t_s_) + " without samples"});
     block_ = BlockStatistics();
     have_previous_block_ = false;
   }
@@ -182,8 +183,7 @@ void RestDetector::add(double t_s, const Eigen::Vector3d& x) {
   last_t_s_ = t_s;
   last_x_ = x;
   // A rest that waits for a possible join is given out once the join window has passed.
-  if (have_pending_ && !in_run_ && t_s - pending_.t_end_s > join_window_s())
-    settle_pending();
+  if (have_pending_ && !in_run_ && t_s - pending_.t_end_s > join_window_s()) settle_pending();
   block_.add(t_s, x);
   if (block_.n >= block_n_) close_block();
 }
@@ -200,9 +200,8 @@ bool RestDetector::block_is_still(const BlockStatistics& block) const {
   const double step_se = std::sqrt(2.0 / static_cast<double>(block.n));
   for (int k = 0; k < 3; ++k) {
     if (sd(k) > options_.still_factor * quiet(k)) return false;
-    if (have_previous_block_ &&
-        std::abs(block.mean(k) - previous_block_mean_(k)) >
-            options_.mean_step_factor * quiet(k) * step_se)
+    if (have_previous_block_ && std::abs(block.mean(k) - previous_block_mean_(k)) >
+                                    options_.mean_step_factor * quiet(k) * step_se)
       return false;
   }
   return true;
@@ -313,8 +312,9 @@ void RestDetector::emit(Run&& run) {
     const double change = last.mean(k) - first.mean(k);
     if (std::abs(change) > options_.creep_factor * quiet(k) * se) {
       std::ostringstream m;
-      m << "slow motion, not a rest: output " << "uvw"[k] << " moves by " << std::setprecision(3)
-        << change << " (" << std::setprecision(2) << std::abs(change) / quiet(k)
+      m << "slow motion, not a rest: output "
+        << "uvw"[k] << " moves by " << std::setprecision(3) << change << " ("
+        << std::setprecision(2) << std::abs(change) / quiet(k)
         << " quiet std) from the first to the last third";
       rejected_.push_back(RejectedSpan{run.t_start_s, run.t_end_s, m.str()});
       return;
@@ -340,7 +340,8 @@ void RestDetector::finish() {
       std::vector<std::pair<double, Eigen::Vector3d>> replay;
       replay.swap(startup_);
       std::vector<double> dt;
-      for (std::size_t i = 1; i < replay.size(); ++i) dt.push_back(replay[i].first - replay[i - 1].first);
+      for (std::size_t i = 1; i < replay.size(); ++i)
+        dt.push_back(replay[i].first - replay[i - 1].first);
       const double median = quantile_of(dt, 0.5);
       if (median > 0.0) {
         rate_hz_ = 1.0 / median;
@@ -367,9 +368,8 @@ StreamCleanup put_in_time_order(std::vector<ImuSample>* samples) {
   StreamCleanup c;
   std::vector<ImuSample>& v = *samples;
   for (std::size_t i = 1; i < v.size(); ++i) c.reordered += v[i].stamp_s < v[i - 1].stamp_s ? 1 : 0;
-  std::stable_sort(v.begin(), v.end(), [](const ImuSample& a, const ImuSample& b) {
-    return a.stamp_s < b.stamp_s;
-  });
+  std::stable_sort(v.begin(), v.end(),
+                   [](const ImuSample& a, const ImuSample& b) { return a.stamp_s < b.stamp_s; });
   std::size_t kept = 0;
   for (std::size_t i = 0; i < v.size(); ++i) {
     if (kept > 0 && v[i].stamp_s == v[kept - 1].stamp_s) {

@@ -88,7 +88,8 @@ std::vector<ImuSample> read_samples(std::istream& in, const std::string& source_
     }
     samples.push_back(ImuSample{values[0], Eigen::Vector3d(values[1], values[2], values[3])});
   }
-  if (samples.empty()) throw SamplesFileError(source_name + ": no samples (expected t,x,y,z lines)");
+  if (samples.empty())
+    throw SamplesFileError(source_name + ": no samples (expected t,x,y,z lines)");
   return samples;
 }
 

@@ -1,4 +1,4 @@
-// The seed's eq. (4) fit: three independent sets per accelerometer, one per gimbal phase
+// The eq. (4) fit of docs/design.md: three independent sets per accelerometer, one per gimbal phase
 // (conventions at the top of fit.cpp).
 #include <Eigen/Dense>
 #include <array>

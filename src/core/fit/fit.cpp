@@ -126,8 +126,9 @@ FitResult fit(const PositionTable& table, const FitOptions& options) {
                      " rows have an unknown orientation (phase '-' without f_x,f_y,f_z): a table "
                      "is either a tumble (all unknown) or known orientations, not both");
     if (options.model == FitModel::Eq4)
-      throw FitError("eq4 needs the gimbal's three phases; rests of unknown orientation are "
-                     "fitted by the tumble fit (model joint)");
+      throw FitError(
+          "eq4 needs the gimbal's three phases; rests of unknown orientation are "
+          "fitted by the tumble fit (model joint)");
     if (!options.effects.empty())
       throw FitError("effect terms need known orientations; a tumble fit has none");
     // Noise that is not white: GLS across the rests (tumble.h), as the joint fits (see the top).
@@ -156,10 +157,10 @@ FitResult fit(const PositionTable& table, const FitOptions& options) {
       for (std::size_t i = 0; i < se.size(); ++i) {
         const DwellRecord& row = table.rows[i];
         for (int s = 0; s < 3; ++s)
-          se[i](s) = std::sqrt(se[i](s) * se[i](s) +
-                               options.noise_model.slow_covariance(s, row.t_start_s, row.t_end_s,
-                                                                   row.t_start_s, row.t_end_s,
-                                                                   row.t_start_s));
+          se[i](s) =
+              std::sqrt(se[i](s) * se[i](s) + options.noise_model.slow_covariance(
+                                                  s, row.t_start_s, row.t_end_s, row.t_start_s,
+                                                  row.t_end_s, row.t_start_s));
       }
     } else {
       corr = dwell_correlation(table, se, options.noise_model);

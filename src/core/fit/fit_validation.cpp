@@ -108,7 +108,8 @@ void validate_joint_geometry(const PositionTable& table, int min_positions) {
     const Eigen::Vector4d h(f(0), f(1), f(2), 1.0);
     M += h * h.transpose();
   }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eig(M / static_cast<double>(table.rows.size()));
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eig(M /
+                                                           static_cast<double>(table.rows.size()));
   const Eigen::Vector4d ev = eig.eigenvalues();
   // Conditioning: 1e-6 leaves the weakest combination determined to about 1000x the noise of the
   // others; below it the fit is dominated by round-off and by how well the orientations are known.

@@ -76,8 +76,9 @@ Quality assess_quality(const FitResult& fit, const PositionTable& table,
     const double deg = rad_to_deg(a(i));
     if (!std::isfinite(deg) || deg < options.min_angle_deg || deg > options.max_angle_deg) {
       std::ostringstream m;
-      m << "angle theta_" << pairs[i] << " = " << deg << " deg is implausible for a triad (outside ["
-        << options.min_angle_deg << ", " << options.max_angle_deg << "] deg)";
+      m << "angle theta_" << pairs[i] << " = " << deg
+        << " deg is implausible for a triad (outside [" << options.min_angle_deg << ", "
+        << options.max_angle_deg << "] deg)";
       fail(m.str());
     }
   }

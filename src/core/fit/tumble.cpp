@@ -109,7 +109,8 @@ Matrix9 checked_tumble_inverse(const Matrix9& N) {
     const Vector9 dir = eig.eigenvectors().col(0);
     std::string involved;
     for (int i = 0; i < kParams; ++i)
-      if (std::abs(dir(i)) > 0.1) involved += (involved.empty() ? "" : ", ") + std::string(kParamNames[i]);
+      if (std::abs(dir(i)) > 0.1)
+        involved += (involved.empty() ? "" : ", ") + std::string(kParamNames[i]);
     throw FitError(
         "tumble: the rests do not determine the intrinsics (their orientations leave " + involved +
         " undetermined): turn the device through more orientations, every axis up and down");
@@ -164,8 +165,9 @@ RestWeights weights_at(const TumbleProblem& problem, const Parameters& p) {
     C.noalias() += u.col(s).asDiagonal() * problem.R[s] * u.col(s).asDiagonal();
   const Eigen::LLT<Eigen::MatrixXd> llt(C);
   if (llt.info() != Eigen::Success)
-    throw FitError("tumble: the covariance of the rests' residuals under the noise model is not "
-                   "positive definite");
+    throw FitError(
+        "tumble: the covariance of the rests' residuals under the noise model is not "
+        "positive definite");
   w.L = llt.matrixL();
   return w;
 }

@@ -19,8 +19,8 @@ constexpr int kParams = 9;  // S lower-triangular (6) then O (3)
 constexpr std::array<int, 6> kLowerIndex{{0, 3, 4, 6, 7, 8}};
 constexpr std::array<int, 6> kLowerRow{{0, 1, 1, 2, 2, 2}};
 constexpr std::array<int, 6> kLowerCol{{0, 0, 1, 0, 1, 2}};
-const char* const kParamNames[kParams] = {"S_ux", "S_vx", "S_vy", "S_wx", "S_wy", "S_wz",
-                                          "O_u",  "O_v",  "O_w"};
+const char* const kParamNames[kParams] = {"S_ux", "S_vx", "S_vy", "S_wx", "S_wy",
+                                          "S_wz", "O_u",  "O_v",  "O_w"};
 const char* const kIntrinsicNames[9] = {"responsivity_u", "responsivity_v", "responsivity_w",
                                         "angle_uv",       "angle_vw",       "angle_wu",
                                         "offset_u",       "offset_v",       "offset_w"};
@@ -69,8 +69,8 @@ struct Normal {
 };
 
 // The rests to fit and how their means err. White noise: each mean on its own, standard errors
-// se. A noise model with a slow part (docs/design.md section 12): the means of neighbouring rests err
-// together; R_s = L_s L_s^T from dwell_correlation (noise.h, the one definition of the slow
+// se. A noise model with a slow part (docs/design.md section 12): the means of neighbouring rests
+// err together; R_s = L_s L_s^T from dwell_correlation (noise.h, the one definition of the slow
 // covariance between dwells) is their correlation per accelerometer in units of se, i.e.
 // Cov(m_i(s), m_j(s)) = se_i(s) se_j(s) R_s(i, j).
 struct TumbleProblem {

@@ -54,8 +54,8 @@ NoiseModel slow_part_from_tumble(const PositionTable& table, const NoiseModel& r
     for (int s = 0; s < 3; ++s) {
       const double se = b.std(s) / std::sqrt(static_cast<double>(b.n));
       if (!(se > 0.0)) return model;
-      Observation o{b.t_start_s, b.t_end_s, (b.mean(s) - level(s)) / se,
-                    Eigen::Vector3d::Zero(), {}};
+      Observation o{
+          b.t_start_s, b.t_end_s, (b.mean(s) - level(s)) / se, Eigen::Vector3d::Zero(), {}};
       o.load(s) = 1.0 / se;
       o.gradient.setZero();
       o.gradient(kParams + s) = 1.0 / se;

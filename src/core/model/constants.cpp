@@ -23,11 +23,13 @@ double normal_gravity(double latitude_deg, double height_m) {
   constexpr double kFlattening = 1.0 / 298.257223563;
   constexpr double kM = 0.00344978650684;  // omega^2 a^2 b / GM
   const double sin2 = std::pow(std::sin(deg_to_rad(latitude_deg)), 2);
-  const double gamma = kGammaEquator * (1.0 + kSomiglianaK * sin2) / std::sqrt(1.0 - kEccentricity2 * sin2);
+  const double gamma =
+      kGammaEquator * (1.0 + kSomiglianaK * sin2) / std::sqrt(1.0 - kEccentricity2 * sin2);
   // Second-order free-air reduction (TR8350.2 eq. 4-3).
   const double h = height_m;
-  const double factor = 1.0 - 2.0 / kSemiMajorAxis * (1.0 + kFlattening + kM - 2.0 * kFlattening * sin2) * h +
-                        3.0 * h * h / (kSemiMajorAxis * kSemiMajorAxis);
+  const double factor =
+      1.0 - 2.0 / kSemiMajorAxis * (1.0 + kFlattening + kM - 2.0 * kFlattening * sin2) * h +
+      3.0 * h * h / (kSemiMajorAxis * kSemiMajorAxis);
   return gamma * factor;
 }
 

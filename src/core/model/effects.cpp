@@ -8,7 +8,8 @@ namespace accel_intrinsics {
 namespace core {
 
 const std::vector<EffectInfo>& effect_catalog() {
-  // Separating experiments (docs/design.md section 3): the protocol options that decouple two terms.
+  // Separating experiments (docs/design.md section 3): the protocol options that decouple two
+  // terms.
   static const char* const kTwoWayVsOffset =
       "a two-way sweep (ProtocolOptions::two_way: up, then back down) separates backlash from an "
       "angle offset: backlash flips sign with the direction of approach, an offset does not";
@@ -202,9 +203,10 @@ Effect make_effect(const std::string& name, const std::string& target, double va
   for (const NoiseEntryInfo& info : noise_entry_catalog()) {
     if (name == info.name)
       throw std::invalid_argument(
-          name + " is a noise-model entry, not an effect term: it is not simulated or fitted as "
-                 "a term; set the simulator's bias_gm_sigma / bias_gm_tau_s / bias_random_walk, "
-                 "or give the run a long rest (protocol initial_rest_s) for the noise model");
+          name +
+          " is a noise-model entry, not an effect term: it is not simulated or fitted as "
+          "a term; set the simulator's bias_gm_sigma / bias_gm_tau_s / bias_random_walk, "
+          "or give the run a long rest (protocol initial_rest_s) for the noise model");
   }
   for (const EffectInfo& info : effect_catalog()) {
     if (name != info.name) continue;

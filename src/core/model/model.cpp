@@ -19,9 +19,11 @@ void validate(const Device& device) {
   if (!device.S.allFinite()) throw std::invalid_argument("device: S has a non-finite entry");
   if (!device.O.allFinite()) throw std::invalid_argument("device: O has a non-finite entry");
   const Eigen::FullPivLU<Eigen::Matrix3d> lu(device.S);
-  if (lu.rank() < 3) throw std::invalid_argument("device: S is singular (the three axes are not independent)");
+  if (lu.rank() < 3)
+    throw std::invalid_argument("device: S is singular (the three axes are not independent)");
   for (const Effect& effect : device.effects) {
-    if (!std::isfinite(effect.value)) throw std::invalid_argument("device: effect " + effect.label() + " is not finite");
+    if (!std::isfinite(effect.value))
+      throw std::invalid_argument("device: effect " + effect.label() + " is not finite");
   }
 }
 

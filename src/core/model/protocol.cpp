@@ -21,9 +21,18 @@ const char* phase_name(Phase p) {
 }
 
 bool parse_phase(const std::string& text, Phase* phase) {
-  if (text == "x" || text == "X") { *phase = Phase::X; return true; }
-  if (text == "y" || text == "Y") { *phase = Phase::Y; return true; }
-  if (text == "z" || text == "Z") { *phase = Phase::Z; return true; }
+  if (text == "x" || text == "X") {
+    *phase = Phase::X;
+    return true;
+  }
+  if (text == "y" || text == "Y") {
+    *phase = Phase::Y;
+    return true;
+  }
+  if (text == "z" || text == "Z") {
+    *phase = Phase::Z;
+    return true;
+  }
   return false;
 }
 
@@ -40,16 +49,18 @@ namespace {
 void require_time(double value, const char* name, bool allow_zero) {
   if (!std::isfinite(value) || value < 0.0 || (!allow_zero && value == 0.0)) {
     throw std::invalid_argument(std::string("protocol: ") + name + " must be a finite " +
-                                (allow_zero ? "non-negative" : "positive") + " number of seconds, got " +
-                                std::to_string(value));
+                                (allow_zero ? "non-negative" : "positive") +
+                                " number of seconds, got " + std::to_string(value));
   }
 }
 }  // namespace
 
 void validate(const ProtocolOptions& options) {
   if (options.steps_per_phase < 3) {
-    throw std::invalid_argument("protocol: steps_per_phase must be at least 3 (the fit has three unknowns per "
-                                "accelerometer and phase), got " + std::to_string(options.steps_per_phase));
+    throw std::invalid_argument(
+        "protocol: steps_per_phase must be at least 3 (the fit has three unknowns per "
+        "accelerometer and phase), got " +
+        std::to_string(options.steps_per_phase));
   }
   require_time(options.move_s, "move_s", true);
   require_time(options.settle_s, "settle_s", true);

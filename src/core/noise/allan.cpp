@@ -1,8 +1,5 @@
 // White and Allan-deviation noise: per-dwell noise, overlapping Allan deviation, a static
 // record's noise parameters (noise.h).
-#include "accel_intrinsics/core/noise/noise.h"
-#include "accel_intrinsics/core/noise/rest_accumulator.h"
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <array>
@@ -10,6 +7,9 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+
+#include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/noise/rest_accumulator.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -165,8 +165,8 @@ std::vector<double> overlapping_allan_deviation(const std::vector<double>& x, do
   return out;
 }
 
-AllanCurve overlapping_allan_deviation(const std::vector<Eigen::Vector3d>& samples,
-                                       double rate_hz, int points_per_decade) {
+AllanCurve overlapping_allan_deviation(const std::vector<Eigen::Vector3d>& samples, double rate_hz,
+                                       int points_per_decade) {
   const std::size_t n = samples.size();
   if (n < 16) throw std::invalid_argument("Allan deviation: fewer than 16 samples");
   if (points_per_decade < 1) throw std::invalid_argument("Allan deviation: points_per_decade < 1");
@@ -252,8 +252,9 @@ NoiseParameters noise_parameters(const AllanCurve& curve, int axis) {
     return true;
   };
 
-  if (!read_line(-0.5, 1.0, 0.95, [&](double tau) { return a / tau; }, &out.white_points,
-                 &out.white_density, &out.white_density_std)) {
+  if (!read_line(
+          -0.5, 1.0, 0.95, [&](double tau) { return a / tau; }, &out.white_points,
+          &out.white_density, &out.white_density_std)) {
     out.white_density = std::sqrt(a);
     out.white_density_std = a > 0.0 ? std::sqrt(model.cov(0, 0)) / (2.0 * std::sqrt(a)) : 0.0;
   }
@@ -261,8 +262,9 @@ NoiseParameters noise_parameters(const AllanCurve& curve, int axis) {
   const LinearFit full = fit_noise_model_all_terms(curve.tau_s, avar, avar_std);
   const double c_std = std::sqrt(std::max(full.cov(2, 2), model.cov(2, 2)));
   const bool walk_seen = c > 2.0 * c_std;
-  if (!walk_seen || !read_line(0.5, 3.0, 0.8, [&](double tau) { return c * tau; },
-                               &out.random_walk_points, &out.random_walk, &out.random_walk_std)) {
+  if (!walk_seen || !read_line(
+                        0.5, 3.0, 0.8, [&](double tau) { return c * tau; }, &out.random_walk_points,
+                        &out.random_walk, &out.random_walk_std)) {
     out.random_walk_points = 0;
     out.random_walk = std::sqrt(3.0 * c);
     const double resolvable = std::sqrt(3.0 * c_std);

@@ -1,8 +1,5 @@
 // The long rest: found in a run's table and turned into a noise model (noise.h); accumulated by
 // rest_accumulator.cpp, live and offline alike.
-#include "accel_intrinsics/core/noise/noise.h"
-#include "accel_intrinsics/core/noise/rest_accumulator.h"
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <array>
@@ -10,6 +7,9 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+
+#include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/noise/rest_accumulator.h"
 
 namespace accel_intrinsics {
 namespace core {

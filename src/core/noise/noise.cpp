@@ -47,10 +47,11 @@ double rw_mean_covariance(double a0, double a1, double b0, double b1, double ori
   a1 = std::max(a1, a0 + kMinInterval);
   b1 = std::max(b1, b0 + kMinInterval);
   const double ta = a1 - a0, tb = b1 - b0;
-  const double abs_mean = double_integral(a0, a1, b0, b1, [](double x) {
-                            const double ax = std::abs(x);
-                            return ax * ax * ax / 6.0;
-                          }) /
+  const double abs_mean = double_integral(a0, a1, b0, b1,
+                                          [](double x) {
+                                            const double ax = std::abs(x);
+                                            return ax * ax * ax / 6.0;
+                                          }) /
                           (ta * tb);
   return 0.5 * (0.5 * (a0 + a1) + 0.5 * (b0 + b1)) - origin - 0.5 * abs_mean;
 }
@@ -142,7 +143,8 @@ NonNegativeFit non_negative_fit(const Eigen::MatrixXd& A, const Eigen::VectorXd&
     if (chi2 < best.chi2) {
       best.chi2 = chi2;
       best.coef.setZero();
-      for (std::size_t j = 0; j < cols.size(); ++j) best.coef(cols[j]) = c(static_cast<Eigen::Index>(j));
+      for (std::size_t j = 0; j < cols.size(); ++j)
+        best.coef(cols[j]) = c(static_cast<Eigen::Index>(j));
     }
   }
   return best;
@@ -156,9 +158,8 @@ static double checked_duration(std::size_t samples, double rate_hz) {
     throw std::invalid_argument("estimate_noise_model: the rate must be positive");
   const double duration = static_cast<double>(samples) / rate_hz;
   if (samples < 64 || duration < 10.0)
-    throw std::invalid_argument("estimate_noise_model: the rest holds " +
-                                std::to_string(samples) + " samples over " +
-                                std::to_string(duration) +
+    throw std::invalid_argument("estimate_noise_model: the rest holds " + std::to_string(samples) +
+                                " samples over " + std::to_string(duration) +
                                 " s; at least 64 samples and 10 s are needed");
   return duration;
 }
@@ -249,8 +250,8 @@ std::shared_ptr<const DwellCorrelation> dwell_correlation(const PositionTable& t
   double origin = table.rows.front().t_start_s;
   for (const DwellRecord& r : table.rows) origin = std::min(origin, r.t_start_s);
   for (int s = 0; s < 3; ++s) {
-    Eigen::MatrixXd R = Eigen::MatrixXd::Identity(static_cast<Eigen::Index>(n),
-                                                  static_cast<Eigen::Index>(n));
+    Eigen::MatrixXd R =
+        Eigen::MatrixXd::Identity(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
     if (model.axes[s].slow()) {
       for (std::size_t i = 0; i < n; ++i) {
         for (std::size_t j = 0; j <= i; ++j) {

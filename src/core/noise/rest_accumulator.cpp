@@ -13,7 +13,9 @@ namespace {
 // overlapping_allan_deviation's stride: clusters of m > 16 start m / 16 samples apart.
 constexpr std::size_t kMaxStrideDivisor = 16;
 
-std::size_t stride_of(std::size_t m) { return std::max<std::size_t>(1, m / kMaxStrideDivisor); }
+std::size_t stride_of(std::size_t m) {
+  return std::max<std::size_t>(1, m / kMaxStrideDivisor);
+}
 
 std::size_t grid_size(int i, int points_per_decade) {
   return static_cast<std::size_t>(
@@ -37,7 +39,8 @@ std::vector<std::size_t> allan_cluster_sizes(std::size_t max_m, int points_per_d
   return out;
 }
 
-// ---- StreamingAllan ------------------------------------------------------------------------------
+// ---- StreamingAllan
+// ------------------------------------------------------------------------------
 //
 // overlapping_allan_deviation sums, for each cluster size m, d_k^2 over k = 0, s, 2 s, ...,
 // k <= n - 2 m, with d_k = theta[k + 2 m] - 2 theta[k + m] + theta[k] (theta[i]: the sum of the
@@ -145,7 +148,9 @@ AllanCurve StreamingAllan::curve(double rate_hz) const {
   return curve;
 }
 
-void StreamingAllan::clear() { *this = StreamingAllan(); }
+void StreamingAllan::clear() {
+  *this = StreamingAllan();
+}
 
 std::size_t StreamingAllan::memory_bytes() const {
   std::size_t bytes = sizeof(*this) + clusters_.capacity() * sizeof(Cluster);
@@ -153,7 +158,8 @@ std::size_t StreamingAllan::memory_bytes() const {
   return bytes;
 }
 
-// ---- RestAccumulator -----------------------------------------------------------------------------
+// ---- RestAccumulator
+// -----------------------------------------------------------------------------
 
 void RestAccumulator::SubBlock::add(double t, const Eigen::Vector3d& x) {
   if (n == 0) t_first = t;
@@ -224,9 +230,10 @@ std::vector<DwellRecord> RestAccumulator::rest_blocks() const {
     if (s.n == 0) continue;
     const double middle = 0.5 * (s.t_first + s.t_last);
     const std::size_t b =
-        length > 0.0 ? std::min(blocks.size() - 1,
-                                static_cast<std::size_t>(std::max(0.0, (middle - first_s_) / length)))
-                     : 0;
+        length > 0.0
+            ? std::min(blocks.size() - 1,
+                       static_cast<std::size_t>(std::max(0.0, (middle - first_s_) / length)))
+            : 0;
     blocks[b].merge(s);
   }
   std::vector<DwellRecord> out;
@@ -264,7 +271,8 @@ std::size_t RestAccumulator::memory_bytes() const {
          sub_.capacity() * sizeof(SubBlock);
 }
 
-// ---- LongRestRecorder ----------------------------------------------------------------------------
+// ---- LongRestRecorder
+// ----------------------------------------------------------------------------
 
 void LongRestRecorder::add_command(const GimbalEvent& event) {
   if (stage_ == Stage::BeforeRest && event.state == GimbalState::Settled) {

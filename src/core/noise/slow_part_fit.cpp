@@ -98,9 +98,8 @@ SlowAmplitude best_slow_amplitude(const Eigen::VectorXd& w_in, const Eigen::Matr
   }
   if (!(mass > 0.0) || !(first > 0.0)) return best;
   best.amplitude = first / mass;
-  best.relative_variance =
-      std::max(0.0, second / mass - best.amplitude * best.amplitude) /
-      (best.amplitude * best.amplitude);
+  best.relative_variance = std::max(0.0, second / mass - best.amplitude * best.amplitude) /
+                           (best.amplitude * best.amplitude);
   return best;
 }
 
@@ -152,9 +151,11 @@ std::string slow_part_note(const std::string& fitted_to, const NoiseModel& model
   for (int s = 0; s < 3; ++s) {
     // Only the parts there are: no "Gauss-Markov 0 over 0 s".
     const AxisNoiseModel& axis = model.axes[s];
-    note << (s > 0 ? ";" : "") << " " << "uvw"[s] << ":";
+    note << (s > 0 ? ";" : "") << " "
+         << "uvw"[s] << ":";
     if (!axis.slow()) note << " no slow part";
-    if (axis.gm_sigma > 0.0) note << " Gauss-Markov " << axis.gm_sigma << " over " << axis.gm_tau_s << " s";
+    if (axis.gm_sigma > 0.0)
+      note << " Gauss-Markov " << axis.gm_sigma << " over " << axis.gm_tau_s << " s";
     if (axis.gm_sigma > 0.0 && axis.rw_density > 0.0) note << ",";
     if (axis.rw_density > 0.0) note << " random walk " << axis.rw_density << " per sqrt(s)";
     if (axis.slow()) note << " [" << std::sqrt(axis.slow_scale_rel_var) << "]";

@@ -85,8 +85,8 @@ NoiseModel slow_part_from_residuals(const PositionTable& table, NoiseModel model
         const Observation& a = obs[static_cast<std::size_t>(i)];
         for (Eigen::Index j = 0; j <= i; ++j) {
           const Observation& b = obs[static_cast<std::size_t>(j)];
-          K(i, j) = K(j, i) = unit.slow_covariance(s, a.t0, a.t1, b.t0, b.t1, t_first) /
-                              (se_obs(i) * se_obs(j));
+          K(i, j) = K(j, i) =
+              unit.slow_covariance(s, a.t0, a.t1, b.t0, b.t1, t_first) / (se_obs(i) * se_obs(j));
         }
       }
       kernels.push_back(U.transpose() * K * U);
@@ -94,19 +94,17 @@ NoiseModel slow_part_from_residuals(const PositionTable& table, NoiseModel model
     const SlowShapeChoice choice = choose_slow_shape(w, kernels, shapes);
     AxisNoiseModel& axis = model.axes[s];
     const AxisNoiseModel slow =
-        choice.shape >= 0
-            ? scaled_shape(shapes[static_cast<std::size_t>(choice.shape)], choice.fit)
-            : AxisNoiseModel();
+        choice.shape >= 0 ? scaled_shape(shapes[static_cast<std::size_t>(choice.shape)], choice.fit)
+                          : AxisNoiseModel();
     axis.gm_sigma = slow.gm_sigma;
     axis.gm_tau_s = slow.gm_tau_s;
     axis.rw_density = slow.rw_density;
     axis.slow_scale_rel_var = slow.slow_scale_rel_var;
   }
-  model.source += slow_part_note(
-      rest_row ? "the run's dwell means and the long rest's " + std::to_string(blocks.size()) +
-                     " blocks"
-               : std::string("the run's dwell means"),
-      model);
+  model.source += slow_part_note(rest_row ? "the run's dwell means and the long rest's " +
+                                                std::to_string(blocks.size()) + " blocks"
+                                          : std::string("the run's dwell means"),
+                                 model);
   return model;
 }
 

@@ -5,6 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <utility>
+
 #include "calibration_run_internal.h"
 
 namespace accel_intrinsics {

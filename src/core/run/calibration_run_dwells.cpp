@@ -1,12 +1,12 @@
 // CalibrationRun (calibration_run.h): accepted dwells, faults and their retries, resume, the
 // watchdogs.
-#include "accel_intrinsics/core/run/calibration_run.h"
-
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
+
+#include "accel_intrinsics/core/run/calibration_run.h"
 #include "calibration_run_internal.h"
 
 namespace accel_intrinsics {

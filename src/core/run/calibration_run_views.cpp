@@ -1,11 +1,11 @@
 // CalibrationRun (calibration_run.h): the views (state, status, checkpoint, what is missing).
-#include "accel_intrinsics/core/run/calibration_run.h"
-
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
+
+#include "accel_intrinsics/core/run/calibration_run.h"
 
 namespace accel_intrinsics {
 namespace core {

@@ -355,9 +355,9 @@ ProtocolActions GimbalProtocol::tick(double now_s) {
           command(now_s, GimbalState::Done, &out);
           state_ = ProtocolState::Done;
           state_since_s_ = now_s;
-          out.push_back(log_action(ProtocolAction::Level::Info,
-                                   "protocol done (" + std::to_string(schedule_.size()) +
-                                       " positions)"));
+          out.push_back(
+              log_action(ProtocolAction::Level::Info,
+                         "protocol done (" + std::to_string(schedule_.size()) + " positions)"));
         }
         changed = true;
       }
@@ -424,8 +424,8 @@ ProtocolStatus GimbalProtocol::status(double now_s) const {
   }
   if (state_ == ProtocolState::Aborted) text << ": " << last_error_;
   if (state_ == ProtocolState::Remount) {
-    text << ": remount the DUT to turn about its own " << phase_name(p.phase)
-         << " axis, then call " << options_.continue_service;
+    text << ": remount the DUT to turn about its own " << phase_name(p.phase) << " axis, then call "
+         << options_.continue_service;
   }
   if (state_ == ProtocolState::WaitOperator) {
     text << ": ";

@@ -51,7 +51,7 @@ const std::vector<RunTransition>& run_transition_table() {
     const auto rows = [&t](std::initializer_list<S> from, E event, S to, bool collecting = false) {
       for (S f : from) t.push_back({f, event, to, collecting});
     };
-    const std::initializer_list<S> all = {S::Idle,    S::Running, S::Dwelling, S::WaitingForResume,
+    const std::initializer_list<S> all = {S::Idle,    S::Running, S::Dwelling,  S::WaitingForResume,
                                           S::Fitting, S::Done,    S::FitFailed, S::Aborted};
     const std::initializer_list<S> collecting = {S::Idle, S::Running, S::Dwelling};
     rows(all, E::Reset, S::Idle);

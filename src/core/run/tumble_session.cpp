@@ -13,9 +13,9 @@ namespace {
 // Before the first fit: every axis up and down, then the eight corners.
 Eigen::Vector3d starting_pose(std::size_t k) {
   static const double c = 1.0 / std::sqrt(3.0);
-  static const Eigen::Vector3d poses[] = {
-      {0, 0, 1},  {0, 0, -1}, {1, 0, 0},   {-1, 0, 0},  {0, 1, 0},   {0, -1, 0},
-      {c, c, c},  {-c, -c, c}, {c, -c, -c}, {-c, c, -c}, {c, -c, c}, {-c, c, c}};
+  static const Eigen::Vector3d poses[] = {{0, 0, 1},   {0, 0, -1},  {1, 0, 0},  {-1, 0, 0},
+                                          {0, 1, 0},   {0, -1, 0},  {c, c, c},  {-c, -c, c},
+                                          {c, -c, -c}, {-c, c, -c}, {c, -c, c}, {-c, c, c}};
   return poses[k % (sizeof(poses) / sizeof(poses[0]))];
 }
 
@@ -67,7 +67,9 @@ bool TumbleSession::add_sample(double t_s, const Eigen::Vector3d& outputs) {
   return take_new_rests(rests);
 }
 
-bool TumbleSession::finish() { return take_new_rests(source_->finish()); }
+bool TumbleSession::finish() {
+  return take_new_rests(source_->finish());
+}
 
 bool TumbleSession::take_new_rests(const CompletedRows& rests) {
   if (rests.empty()) return false;

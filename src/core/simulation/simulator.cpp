@@ -81,7 +81,8 @@ void validate(const SimulationOptions& options) {
     if (!std::isfinite(d) || options.rate_hz * d < 2.0) {
       throw std::invalid_argument(
           "simulation: every dwell_s_pattern entry times rate_hz must give at least two "
-          "samples per dwell, got " + std::to_string(d) + " s");
+          "samples per dwell, got " +
+          std::to_string(d) + " s");
     }
   }
 }
@@ -124,7 +125,9 @@ std::vector<Eigen::Vector3d> slow_bias_path(const SimulationOptions& o, std::uin
 
 SlowBiasProcess::SlowBiasProcess(double gm_sigma, double gm_tau_s, double random_walk,
                                  std::uint64_t seed)
-    : gm_sigma_(gm_sigma), gm_tau_s_(gm_tau_s), random_walk_(random_walk),
+    : gm_sigma_(gm_sigma),
+      gm_tau_s_(gm_tau_s),
+      random_walk_(random_walk),
       rng_(seed ^ 0x5bd1e9955bd1e995ull) {}
 
 Eigen::Vector3d SlowBiasProcess::value() {
@@ -177,7 +180,8 @@ NoiseModel SlowBiasProcess::add_to(NoiseModel white, double gm_sigma, double gm_
 }
 
 double TemperatureProfile::at(double t_s) const {
-  return start_c + rate_c_per_s * t_s + sine_amplitude_c * std::sin(2.0 * kPi * t_s / sine_period_s);
+  return start_c + rate_c_per_s * t_s +
+         sine_amplitude_c * std::sin(2.0 * kPi * t_s / sine_period_s);
 }
 
 double TemperatureProfile::mean_over(double t0_s, double t1_s) const {
@@ -203,8 +207,8 @@ PositionTable simulate_position_table(const SimulationOptions& options, RestSamp
   const std::vector<ScheduledPosition> schedule = simulation_schedule(options);
   const std::vector<Eigen::Vector3d> bias =
       has_slow_bias(options)
-          ? slow_bias_path(options, samples_in_window(0.0, schedule.back().dwell_end_s,
-                                                      options.rate_hz))
+          ? slow_bias_path(options,
+                           samples_in_window(0.0, schedule.back().dwell_end_s, options.rate_hz))
           : std::vector<Eigen::Vector3d>();
   if (first_dwell) *first_dwell = RestSamples();
   std::mt19937_64 rng(options.seed);
@@ -233,9 +237,9 @@ PositionTable simulate_position_table(const SimulationOptions& options, RestSamp
     if (temp.recorded) {
       const std::uint64_t readings = samples_in_window(row.t_start_s, row.t_end_s, temp.rate_hz);
       if (readings > 0) {
-        row.temperature_c = geom.temperature_offset_k + t_ref +
-                            temp.noise_c / std::sqrt(static_cast<double>(readings)) *
-                                normal(temperature_rng);
+        row.temperature_c =
+            geom.temperature_offset_k + t_ref +
+            temp.noise_c / std::sqrt(static_cast<double>(readings)) * normal(temperature_rng);
       }
     }
     Eigen::Vector3d truth = predict_outputs(options.truth, geom, options.local_gravity);
@@ -258,8 +262,7 @@ PositionTable simulate_position_table(const SimulationOptions& options, RestSamp
         sum += x;
       }
       row.mean = sum / n;
-      for (const Eigen::Vector3d& x : first_dwell->outputs)
-        sum_sq += (x - row.mean).cwiseAbs2();
+      for (const Eigen::Vector3d& x : first_dwell->outputs) sum_sq += (x - row.mean).cwiseAbs2();
       if (row.n >= 2) row.std = (sum_sq / (n - 1.0)).cwiseSqrt();
       table.rows.push_back(row);
       continue;
@@ -313,8 +316,8 @@ Recording simulate_recording(const SimulationOptions& options) {
     const auto readings = static_cast<std::uint64_t>(std::floor(end_s * temp.rate_hz));
     for (std::uint64_t k = 0; k <= readings; ++k) {
       const double t_true = static_cast<double>(k) / temp.rate_hz;
-      recording.temperatures.push_back(
-          TemperatureSample{t_true + lag, temp.at(t_true) + temp.noise_c * normal(temperature_rng)});
+      recording.temperatures.push_back(TemperatureSample{
+          t_true + lag, temp.at(t_true) + temp.noise_c * normal(temperature_rng)});
     }
   }
   const auto count = static_cast<std::uint64_t>(std::floor(end_s * options.rate_hz));

@@ -64,9 +64,9 @@ void validate(const TumbleSimulationOptions& o) {
   if (!(o.min_turn_deg >= 0.0 && o.min_turn_deg <= 150.0))
     throw std::invalid_argument("tumble simulation: min_turn_deg must be in [0, 150]");
   if (o.poses < 1) throw std::invalid_argument("tumble simulation: poses must be >= 1");
-  SlowBiasProcess::validate(o.bias_gm_sigma, o.bias_gm_tau_s, o.bias_random_walk,
-                            "tumble simulation: ",
-                            {"bias_gm_sigma", "bias_gm_tau_s", "bias_random_walk"});
+  SlowBiasProcess::validate(
+      o.bias_gm_sigma, o.bias_gm_tau_s, o.bias_random_walk,
+      "tumble simulation: ", {"bias_gm_sigma", "bias_gm_tau_s", "bias_random_walk"});
   for (const Eigen::Vector3d& u : o.up_directions)
     if (!(u.norm() > 0.0) || !u.allFinite())
       throw std::invalid_argument("tumble simulation: an up direction is zero or not finite");
@@ -125,7 +125,8 @@ TumbleRecording simulate_hand_tumble(const TumbleSimulationOptions& o) {
     if (o.up_directions.empty()) {
       do {
         next = random_unit(rng);
-      } while (std::acos(std::max(-1.0, std::min(1.0, next.dot(up)))) < o.min_turn_deg * M_PI / 180.0);
+      } while (std::acos(std::max(-1.0, std::min(1.0, next.dot(up)))) <
+               o.min_turn_deg * M_PI / 180.0);
     } else {
       next = o.up_directions[k].normalized();
     }
@@ -152,8 +153,8 @@ NoiseModel true_noise_model(const TumbleSimulationOptions& o) {
                                  o.bias_gm_tau_s, o.bias_random_walk);
 }
 
-Device random_tumble_device(std::uint64_t seed, double responsivity_spread,
-                            double misalignment_rad, double offset_max, bool random_mounting) {
+Device random_tumble_device(std::uint64_t seed, double responsivity_spread, double misalignment_rad,
+                            double offset_max, bool random_mounting) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> uniform(-1.0, 1.0);
   Device d;

@@ -9,13 +9,12 @@
 #include <random>
 #include <string>
 
-#include "accel_intrinsics/core/simulation/simulator.h"
 #include "../../support/random_device.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace accel_intrinsics {
 namespace core {
 namespace {
-
 
 SimulationOptions stand(std::uint64_t seed) {
   std::mt19937_64 rng(seed);
@@ -71,8 +70,8 @@ TEST(ClockCheck, OffsetsFromATenthToAHundredSecondsAreFound) {
     const ClockCheckResult r = check(rec, offset);
     ASSERT_TRUE(r.checked) << r.not_checked_why;
     EXPECT_TRUE(r.offset_found) << "offset " << offset << " seed " << seed << ": explained "
-                                << r.explained_at_zero << " unshifted, best shift " << r.best_shift_s
-                                << " gain " << r.gain;
+                                << r.explained_at_zero << " unshifted, best shift "
+                                << r.best_shift_s << " gain " << r.gain;
     EXPECT_NEAR(r.offset_s, offset, 0.02) << "seed " << seed;
     EXPECT_GT(r.explained_at_offset, 0.9);
   }
@@ -120,7 +119,8 @@ TEST(ClockCheck, MessageNamesTheOffsetAndTheFix) {
   EXPECT_NEAR(r.offset_s, 5.0, 0.02);
   const std::string late = two_decimals(r.offset_s);
   const std::string m = r.message("--imu-time-offset");
-  EXPECT_NE(m.find("IMU stamps are " + late + " s later than the gimbal's"), std::string::npos) << m;
+  EXPECT_NE(m.find("IMU stamps are " + late + " s later than the gimbal's"), std::string::npos)
+      << m;
   EXPECT_NE(m.find("pass --imu-time-offset -" + late), std::string::npos) << m;
   const ClockCheckResult early = check(simulate_recording(stand(4)), -5.0);
   ASSERT_TRUE(early.offset_found);

@@ -11,20 +11,20 @@
 #include <sstream>
 #include <string>
 
+#include "../../support/analysis_checks.h"
+#include "../../support/random_device.h"
+#include "../../support/statistical_bounds.h"
 #include "accel_intrinsics/core/analysis/discrepancy.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
-#include "../../support/analysis_checks.h"
-#include "../../support/statistical_bounds.h"
-#include "../../support/random_device.h"
 
 namespace accel_intrinsics {
 namespace core {
 namespace {
 
-using testing_devices::random_device;
 using analysis_checks::describe;
 using analysis_checks::detection_threshold;
 using analysis_checks::find_candidate;
+using testing_devices::random_device;
 
 SimulationOptions closing_simulation(std::uint64_t seed, std::uint32_t steps = 24,
                                      bool two_way = false) {

@@ -11,16 +11,15 @@
 #include <iostream>
 #include <random>
 
-#include "accel_intrinsics/core/model/constants.h"
-#include "accel_intrinsics/core/fit/fit.h"
-#include "accel_intrinsics/core/simulation/simulator.h"
-#include "../../support/statistical_bounds.h"
 #include "../../support/random_device.h"
+#include "../../support/statistical_bounds.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace accel_intrinsics {
 namespace core {
 namespace {
-
 
 // The nine parameters with U = 2 x the fit's standard uncertainty (type A: the simulation has no
 // rig errors, so type A is the whole uncertainty).

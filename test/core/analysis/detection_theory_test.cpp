@@ -6,6 +6,8 @@
 //    the binomial distribution with that p bounds (random devices, one per run).
 //  - The thresholds analyze() reports (CandidateScore::detection_threshold) agree with the
 //    independent ones.
+#include "../../support/detection_theory.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -14,11 +16,10 @@
 #include <random>
 #include <string>
 
+#include "../../support/random_device.h"
+#include "../../support/statistical_bounds.h"
 #include "accel_intrinsics/core/analysis/discrepancy.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
-#include "../../support/detection_theory.h"
-#include "../../support/statistical_bounds.h"
-#include "../../support/random_device.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -101,10 +102,11 @@ TEST_P(DetectionRate, NamedAtTheIndependentThresholdAsOftenAsTheNoncentralChiSqu
     if (names(analyze(simulate_position_table(so), options), hidden)) ++named;
   }
   const std::pair<int, int> bounds = rate_bounds(runs, rc.power);
-  std::printf("%s: named in %d of %d runs at the p = %.2f threshold (bounds %d..%d), mean "
-              "critical chi2 %.3f\n",
-              effect_info(rc.kind).name, named, runs, rc.power, bounds.first, bounds.second,
-              sum_critical / runs);
+  std::printf(
+      "%s: named in %d of %d runs at the p = %.2f threshold (bounds %d..%d), mean "
+      "critical chi2 %.3f\n",
+      effect_info(rc.kind).name, named, runs, rc.power, bounds.first, bounds.second,
+      sum_critical / runs);
   EXPECT_GE(named, bounds.first);
   EXPECT_LE(named, bounds.second);
 }

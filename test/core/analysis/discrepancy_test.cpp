@@ -16,24 +16,24 @@
 #include <sstream>
 #include <string>
 
+#include "../../support/analysis_checks.h"
+#include "../../support/random_device.h"
+#include "../../support/statistical_bounds.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
-#include "../../support/analysis_checks.h"
-#include "../../support/statistical_bounds.h"
-#include "../../support/random_device.h"
 
 namespace accel_intrinsics {
 namespace core {
 namespace {
 
-using testing_devices::random_device;
 using analysis_checks::describe;
 using analysis_checks::detection_threshold;
+using analysis_checks::expect_chi2_in_band;
 using analysis_checks::find_candidate;
 using analysis_checks::find_named;
-using analysis_checks::expect_chi2_in_band;
 using analysis_checks::trial_bands;
 using analysis_checks::TrialBands;
+using testing_devices::random_device;
 
 SimulationOptions random_simulation(std::uint64_t seed, bool two_way = false) {
   std::mt19937_64 rng(seed);
@@ -135,8 +135,8 @@ TEST(Discrepancy, EffectFreeDataFalseAlarmRateWithinAlpha) {
     }
   }
   EXPECT_EQ(twin_checks, 4);
-  std::cout << "[ INFO     ] " << runs_naming_something
-            << " of " << runs << " effect-free runs named an effect (bound " << bound << ")\n";
+  std::cout << "[ INFO     ] " << runs_naming_something << " of " << runs
+            << " effect-free runs named an effect (bound " << bound << ")\n";
   EXPECT_LE(runs_naming_something, bound)
       << runs_naming_something << " of " << runs << " effect-free runs named an effect";
 }
@@ -182,21 +182,22 @@ TEST(Discrepancy, HolmAdjustedPValuesAsComputedByHand) {
     std::vector<const CandidateScore*> ident;
     for (const CandidateScore& c : step.candidates) {
       if (!c.identifiable) continue;
-      EXPECT_NEAR(c.p_raw, std::erfc(std::sqrt(c.score_chi2 / 2.0)),
-                  1e-9 * c.p_raw + 1e-300) << c.effect.label();
+      EXPECT_NEAR(c.p_raw, std::erfc(std::sqrt(c.score_chi2 / 2.0)), 1e-9 * c.p_raw + 1e-300)
+          << c.effect.label();
       ident.push_back(&c);
     }
     std::vector<const CandidateScore*> sorted = ident;
-    std::stable_sort(sorted.begin(), sorted.end(),
-                     [](const CandidateScore* x, const CandidateScore* y) { return x->p_raw < y->p_raw; });
+    std::stable_sort(
+        sorted.begin(), sorted.end(),
+        [](const CandidateScore* x, const CandidateScore* y) { return x->p_raw < y->p_raw; });
     const double m = static_cast<double>(sorted.size());
     double running = 0.0;
     for (std::size_t k = 0; k < sorted.size(); ++k) {
       const double holm = std::min(1.0, (m - static_cast<double>(k)) * sorted[k]->p_raw);
       running = std::max(running, holm);
-      EXPECT_NEAR(sorted[k]->p_holm, running, 1e-12 * running) << sorted[k]->effect.label() << " k " << k;
-      if (k > 0 && m * sorted[k]->p_raw < 1.0 && holm >= running &&
-          sorted[k]->p_raw > 1e-280) {
+      EXPECT_NEAR(sorted[k]->p_holm, running, 1e-12 * running)
+          << sorted[k]->effect.label() << " k " << k;
+      if (k > 0 && m * sorted[k]->p_raw < 1.0 && holm >= running && sorted[k]->p_raw > 1e-280) {
         ++sensitive;
       }
     }

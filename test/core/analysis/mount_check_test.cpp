@@ -26,8 +26,18 @@ Eigen::Vector3d eq4(int phase, double a) {
   }
 }
 
-enum class Stand { Correct, FlipX, FlipZ, SwapYZ, ZeroOffsetX, InG, InCounts, Motionless, Silent,
-                   SilentAtZ90 };
+enum class Stand {
+  Correct,
+  FlipX,
+  FlipZ,
+  SwapYZ,
+  ZeroOffsetX,
+  InG,
+  InCounts,
+  Motionless,
+  Silent,
+  SilentAtZ90
+};
 
 std::vector<PoseMean> visit(Stand stand, std::uint64_t seed) {
   std::mt19937_64 rng(seed);

@@ -13,10 +13,10 @@
 #include <random>
 #include <vector>
 
+#include "../../support/statistical_bounds.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
-#include "../../support/statistical_bounds.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -32,7 +32,8 @@ Device random_device(std::mt19937_64& rng) {
   Device d;
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) {
-      d.S(i, j) = i == j ? 1.0 + (unit(rng) < 0 ? -1.0 : 1.0) * scale(rng) : deg_to_rad(1.0) * normal(rng);
+      d.S(i, j) =
+          i == j ? 1.0 + (unit(rng) < 0 ? -1.0 : 1.0) * scale(rng) : deg_to_rad(1.0) * normal(rng);
     }
     d.O(i) = offset(rng);
   }
@@ -42,7 +43,8 @@ Device random_device(std::mt19937_64& rng) {
   return d;
 }
 
-SimulationOptions simulation(const Device& truth, double lag_s, double rate_hz, std::uint64_t seed) {
+SimulationOptions simulation(const Device& truth, double lag_s, double rate_hz,
+                             std::uint64_t seed) {
   SimulationOptions sim;
   sim.truth = truth;
   if (lag_s != 0.0) sim.truth.effects.push_back(Effect{EffectKind::TimingLag, 0, lag_s});
@@ -131,7 +133,8 @@ TEST(ScheduleFromCommands, ReproducesBuildScheduleOnSimulatedCommands) {
     std::vector<GimbalEvent> shuffled = shifted;
     // Swap neighbours with distinct stamps only: events with equal stamps keep their order.
     for (std::size_t i = 1; i < shuffled.size(); ++i) {
-      if (shuffled[i].stamp_s != shuffled[i - 1].stamp_s && rng() % 2 == 0) std::swap(shuffled[i], shuffled[i - 1]);
+      if (shuffled[i].stamp_s != shuffled[i - 1].stamp_s && rng() % 2 == 0)
+        std::swap(shuffled[i], shuffled[i - 1]);
     }
     EXPECT_DOUBLE_EQ(first_command_stamp(shuffled), t0);
     expect_same_schedule(schedule_from_commands(shuffled), want, 1e-6);
@@ -201,28 +204,31 @@ TEST(TimingLag, RecoveredWithinItsStdForRandomDevicesRatesAndSeeds) {
     double rate_hz;
   };
   // 2-20 ms at 100-400 Hz, both signs: many times the detection threshold (checked below).
-  const std::vector<Case> cases = {{0.002, 100.0}, {0.005, 400.0}, {0.010, 200.0},
+  const std::vector<Case> cases = {{0.002, 100.0}, {0.005, 400.0},  {0.010, 200.0},
                                    {0.020, 100.0}, {-0.005, 200.0}, {0.003, 400.0}};
   std::mt19937_64 rng(20261121);
   std::uniform_real_distribution<double> density_ug(100.0, 600.0);
   for (std::size_t k = 0; k < cases.size(); ++k) {
-    SimulationOptions sim = simulation(random_device(rng), cases[k].lag_s, cases[k].rate_hz, 1000 + k);
+    SimulationOptions sim =
+        simulation(random_device(rng), cases[k].lag_s, cases[k].rate_hz, 1000 + k);
     sim.noise_density = density_ug(rng) * 1e-6 * kStandardGravity;
     sim.protocol.steps_per_phase = 12 + 4 * static_cast<std::uint32_t>(k % 3);
     sim.protocol.dwell_s = 1.5;
     sim.protocol.two_way = k == 5;  // return sweep: approach -1 and a turn without travel
-    SCOPED_TRACE(::testing::Message() << "lag " << cases[k].lag_s << " s at " << cases[k].rate_hz
-                                      << " Hz, N " << sim.protocol.steps_per_phase
-                                      << (sim.protocol.two_way ? " two-way" : ""));
+    SCOPED_TRACE(::testing::Message()
+                 << "lag " << cases[k].lag_s << " s at " << cases[k].rate_hz << " Hz, N "
+                 << sim.protocol.steps_per_phase << (sim.protocol.two_way ? " two-way" : ""));
     const SimulatedRun run = simulate_and_fit(sim);
-    const TimingLagEstimate est = estimate_timing_lag(run.recording.commands, run.recording.samples,
-                                                      run.table, run.base);
+    const TimingLagEstimate est =
+        estimate_timing_lag(run.recording.commands, run.recording.samples, run.table, run.base);
     ASSERT_TRUE(est.ok) << est.message;
     EXPECT_TRUE(est.converged) << est.message;
     EXPECT_FALSE(est.at_bound);
     EXPECT_FALSE(est.sigma_from_residuals);
-    EXPECT_EQ(est.moves_used, (sim.protocol.two_way ? 6u : 3u) * (sim.protocol.steps_per_phase - 1));
-    EXPECT_GT(std::abs(cases[k].lag_s), 4.0 * est.detection_threshold_s) << "the case is not well above threshold";
+    EXPECT_EQ(est.moves_used,
+              (sim.protocol.two_way ? 6u : 3u) * (sim.protocol.steps_per_phase - 1));
+    EXPECT_GT(std::abs(cases[k].lag_s), 4.0 * est.detection_threshold_s)
+        << "the case is not well above threshold";
     // Every case within k std, k from the normal quantile so that all cases together fail a
     // correct estimator in < 1e-3 of seed sets (3 std each would fail ~1.6 % of them).
     const double k_std = statistical_bounds::normal_k(1e-3 / static_cast<double>(cases.size()));
@@ -260,8 +266,8 @@ TEST(TimingLag, LagFreeDataFalseAlarmRateAndCalibration) {
     sim.protocol.dwell_s = 1.0;
     sim.protocol.phase_change_s = 1.0;
     const SimulatedRun run = simulate_and_fit(sim);
-    const TimingLagEstimate est = estimate_timing_lag(run.recording.commands, run.recording.samples,
-                                                      run.table, run.base);
+    const TimingLagEstimate est =
+        estimate_timing_lag(run.recording.commands, run.recording.samples, run.table, run.base);
     ASSERT_TRUE(est.ok) << est.message;
     if (est.detected) ++flagged;
     sum_lr += est.lr_chi2;
@@ -273,12 +279,13 @@ TEST(TimingLag, LagFreeDataFalseAlarmRateAndCalibration) {
   }
   namespace sb = statistical_bounds;
   const int flagged_max = sb::binomial_upper(runs, 0.05, 1.25e-4);
-  const int beyond_max = sb::binomial_upper(runs, 2.0 * std::erfc(3.0 / std::sqrt(2.0)) / 2.0,
-                                            1.25e-4);
+  const int beyond_max =
+      sb::binomial_upper(runs, 2.0 * std::erfc(3.0 / std::sqrt(2.0)) / 2.0, 1.25e-4);
   const std::pair<double, double> band = sb::chi2_band(runs, 6.25e-5);
-  std::printf("lag-free: flagged %d (max %d), sum LR %.1f, sum z^2 %.1f (band %.1f..%.1f), "
-              "beyond 3 std %d (max %d)\n",
-              flagged, flagged_max, sum_lr, sum_z2, band.first, band.second, beyond_3, beyond_max);
+  std::printf(
+      "lag-free: flagged %d (max %d), sum LR %.1f, sum z^2 %.1f (band %.1f..%.1f), "
+      "beyond 3 std %d (max %d)\n",
+      flagged, flagged_max, sum_lr, sum_z2, band.first, band.second, beyond_3, beyond_max);
   EXPECT_LE(flagged, flagged_max) << "false alarms at alpha = 0.05 in " << runs << " lag-free runs";
   EXPECT_GE(sum_lr, band.first);
   EXPECT_LE(sum_lr, band.second);
@@ -293,15 +300,17 @@ TEST(TimingLag, TimeAxesAbsoluteStampsAndDriftOrigin) {
   // shows as a misfit of the move samples.
   std::mt19937_64 rng(99);
   Device truth = random_device(rng);
-  for (int s = 0; s < 3; ++s) truth.effects.push_back(Effect{EffectKind::OffsetDrift, s, 4e-4 * (s + 1)});
+  for (int s = 0; s < 3; ++s)
+    truth.effects.push_back(Effect{EffectKind::OffsetDrift, s, 4e-4 * (s + 1)});
   SimulationOptions sim = simulation(truth, 0.008, 200.0, 42);
   sim.protocol.steps_per_phase = 12;
   FitOptions fit_options;
-  for (int s = 0; s < 3; ++s) fit_options.effects.push_back(Effect{EffectKind::OffsetDrift, s, 0.0});
+  for (int s = 0; s < 3; ++s)
+    fit_options.effects.push_back(Effect{EffectKind::OffsetDrift, s, 0.0});
   const SimulatedRun run = simulate_and_fit(sim, fit_options);
   ASSERT_EQ(run.table.time_origin_s, 0.0);
-  const TimingLagEstimate est = estimate_timing_lag(run.recording.commands, run.recording.samples,
-                                                    run.table, run.base);
+  const TimingLagEstimate est =
+      estimate_timing_lag(run.recording.commands, run.recording.samples, run.table, run.base);
   ASSERT_TRUE(est.ok) << est.message;
   EXPECT_LT(std::abs(est.lag_s - 0.008), kSingleRunK * est.std_s) << est.message;
   EXPECT_NEAR(est.reduced_chi2, 1.0, reduced_chi2_tolerance(est));
@@ -314,8 +323,8 @@ TEST(TimingLag, TimeAxesAbsoluteStampsAndDriftOrigin) {
   feed_in_stamp_order(shifted, &assembler);
   ASSERT_EQ(assembler.table().time_origin_s, T);
   const FitResult base_shifted = fit(assembler.table(), fit_options);
-  const TimingLagEstimate est_shifted = estimate_timing_lag(shifted.commands, shifted.samples,
-                                                            assembler.table(), base_shifted);
+  const TimingLagEstimate est_shifted =
+      estimate_timing_lag(shifted.commands, shifted.samples, assembler.table(), base_shifted);
   ASSERT_TRUE(est_shifted.ok) << est_shifted.message;
   EXPECT_EQ(est_shifted.time_origin_s, T);
   EXPECT_NEAR(est_shifted.lag_s, est.lag_s, 0.05 * est.std_s);
@@ -326,13 +335,13 @@ TEST(TimingLag, TimeAxesAbsoluteStampsAndDriftOrigin) {
   const TimingLagEstimate explicit_origin =
       estimate_timing_lag(run.recording.commands, run.recording.samples, run.base, 0.0, sigma);
   EXPECT_EQ(explicit_origin.lag_s, est.lag_s);
-  const TimingLagEstimate nan_origin = estimate_timing_lag(run.recording.commands, run.recording.samples,
-                                                           run.base, std::nan(""), sigma);
+  const TimingLagEstimate nan_origin = estimate_timing_lag(
+      run.recording.commands, run.recording.samples, run.base, std::nan(""), sigma);
   EXPECT_EQ(nan_origin.lag_s, est.lag_s);
   // A drift origin 100 s off moves the fitted offsets by d * 100 s along the whole run: the
   // move samples no longer fit.
-  const TimingLagEstimate wrong = estimate_timing_lag(run.recording.commands, run.recording.samples,
-                                                      run.base, -100.0, sigma);
+  const TimingLagEstimate wrong =
+      estimate_timing_lag(run.recording.commands, run.recording.samples, run.base, -100.0, sigma);
   EXPECT_GT(wrong.reduced_chi2, 3.0) << wrong.message;
 }
 
@@ -342,7 +351,8 @@ TEST(TimingLag, FlagsRecordingsWithoutMoveSamples) {
   sim.protocol.steps_per_phase = 6;
   const SimulatedRun run = simulate_and_fit(sim);
   // Keep only the samples a dwell-only logger would keep: stamps inside [SETTLED, next MOVING).
-  const std::vector<ScheduledPosition> schedule = schedule_from_commands(run.recording.commands, 0.0);
+  const std::vector<ScheduledPosition> schedule =
+      schedule_from_commands(run.recording.commands, 0.0);
   std::vector<ImuSample> dwell_only;
   for (const ImuSample& s : run.recording.samples) {
     for (const ScheduledPosition& p : schedule) {
@@ -365,18 +375,21 @@ TEST(TimingLag, FlagsRecordingsWithoutMoveSamples) {
   EXPECT_NE(est.message.find("while the gimbal moves"), std::string::npos) << est.message;
 
   // No commands at all.
-  est = estimate_timing_lag({}, run.recording.samples, run.base, std::nan(""), Eigen::Vector3d::Ones());
+  est = estimate_timing_lag({}, run.recording.samples, run.base, std::nan(""),
+                            Eigen::Vector3d::Ones());
   EXPECT_FALSE(est.ok);
   EXPECT_NE(est.message.find("no gimbal commands"), std::string::npos) << est.message;
 
   // The full stream with the same options works.
-  est = estimate_timing_lag(run.recording.commands, run.recording.samples, run.table, run.base, options);
+  est = estimate_timing_lag(run.recording.commands, run.recording.samples, run.table, run.base,
+                            options);
   EXPECT_TRUE(est.ok) << est.message;
   EXPECT_TRUE(est.detected) << est.message;
 
   // Bad options throw.
   options.max_abs_lag_s = 0.0;
-  EXPECT_THROW(estimate_timing_lag(run.recording.commands, run.recording.samples, run.table, run.base, options),
+  EXPECT_THROW(estimate_timing_lag(run.recording.commands, run.recording.samples, run.table,
+                                   run.base, options),
                std::invalid_argument);
 }
 
@@ -386,16 +399,16 @@ TEST(TimingLag, LargeLagConvergesAndTheBoundIsReported) {
   SimulationOptions sim = simulation(random_device(rng), 0.08, 100.0, 9);
   sim.protocol.steps_per_phase = 8;
   const SimulatedRun run = simulate_and_fit(sim);
-  const TimingLagEstimate est = estimate_timing_lag(run.recording.commands, run.recording.samples,
-                                                    run.table, run.base);
+  const TimingLagEstimate est =
+      estimate_timing_lag(run.recording.commands, run.recording.samples, run.table, run.base);
   ASSERT_TRUE(est.ok) << est.message;
   EXPECT_TRUE(est.converged) << est.message;
   EXPECT_LT(std::abs(est.lag_s - 0.08), kSingleRunK * est.std_s) << est.message;
   // A bound below the true lag: the estimate stops there and is not ok.
   TimingLagEstimateOptions options;
   options.max_abs_lag_s = 0.03;
-  const TimingLagEstimate bounded = estimate_timing_lag(run.recording.commands, run.recording.samples,
-                                                        run.table, run.base, options);
+  const TimingLagEstimate bounded = estimate_timing_lag(
+      run.recording.commands, run.recording.samples, run.table, run.base, options);
   EXPECT_TRUE(bounded.at_bound) << bounded.message;
   EXPECT_FALSE(bounded.ok);
   EXPECT_FALSE(bounded.detected);
@@ -410,13 +423,13 @@ TEST(TimingLag, NoiseScaleFromResidualsWhenTheTableHasNoStd) {
   SimulationOptions sim = simulation(random_device(rng), 0.004, 200.0, 8);
   sim.protocol.steps_per_phase = 8;
   const SimulatedRun run = simulate_and_fit(sim);
-  const TimingLagEstimate known = estimate_timing_lag(run.recording.commands, run.recording.samples,
-                                                      run.table, run.base);
+  const TimingLagEstimate known =
+      estimate_timing_lag(run.recording.commands, run.recording.samples, run.table, run.base);
   const Eigen::Vector3d sigma = Eigen::Vector3d::Constant(sample_noise_std(sim));
-  const TimingLagEstimate exact = estimate_timing_lag(run.recording.commands, run.recording.samples,
-                                                      run.base, 0.0, sigma);
-  const TimingLagEstimate unknown = estimate_timing_lag(run.recording.commands, run.recording.samples,
-                                                        run.base, 0.0, Eigen::Vector3d::Zero());
+  const TimingLagEstimate exact =
+      estimate_timing_lag(run.recording.commands, run.recording.samples, run.base, 0.0, sigma);
+  const TimingLagEstimate unknown = estimate_timing_lag(
+      run.recording.commands, run.recording.samples, run.base, 0.0, Eigen::Vector3d::Zero());
   ASSERT_TRUE(known.ok && exact.ok && unknown.ok) << unknown.message;
   EXPECT_TRUE(unknown.sigma_from_residuals);
   EXPECT_NEAR(unknown.lag_s, known.lag_s, 0.1 * known.std_s);
@@ -425,7 +438,6 @@ TEST(TimingLag, NoiseScaleFromResidualsWhenTheTableHasNoStd) {
   EXPECT_NEAR(exact.lag_s, known.lag_s, 0.1 * known.std_s);
   EXPECT_LT(std::abs(unknown.lag_s - 0.004), kSingleRunK * unknown.std_s);
 }
-
 
 // The calibration node keeps only what the estimator reads (MoveSampleRecorder fed by the
 // assembler's release observers, messages arriving out of order within the reorder window): the
@@ -443,11 +455,11 @@ TEST(MoveSampleRecorder, GivesTheEstimateOfTheWholeRecording) {
     options.reorder_window_s = 0.3;
     DwellAssembler assembler(options);
     MoveSampleRecorder recorder;
-    assembler.set_release_observers(
-        [&recorder](const GimbalEvent& e) { recorder.add_command(e); },
-        [&recorder](const ImuSample& s) { recorder.add_sample(s); });
+    assembler.set_release_observers([&recorder](const GimbalEvent& e) { recorder.add_command(e); },
+                                    [&recorder](const ImuSample& s) { recorder.add_sample(s); });
     // Arrival order: commands 0.2 s late (inside the reorder window), samples in order.
-    std::vector<std::pair<double, int>> arrivals;  // (arrival time, index: >= 0 sample, < 0 command)
+    std::vector<std::pair<double, int>>
+        arrivals;  // (arrival time, index: >= 0 sample, < 0 command)
     for (std::size_t i = 0; i < run.recording.samples.size(); ++i)
       arrivals.emplace_back(run.recording.samples[i].stamp_s, static_cast<int>(i));
     for (std::size_t i = 0; i < run.recording.commands.size(); ++i)
@@ -467,8 +479,8 @@ TEST(MoveSampleRecorder, GivesTheEstimateOfTheWholeRecording) {
     EXPECT_EQ(recorder.samples_dropped(), 0u);
     EXPECT_LT(recorder.samples().size(), run.recording.samples.size() / 2);
 
-    const TimingLagEstimate whole = estimate_timing_lag(
-        run.recording.commands, run.recording.samples, run.table, run.base);
+    const TimingLagEstimate whole =
+        estimate_timing_lag(run.recording.commands, run.recording.samples, run.table, run.base);
     const TimingLagEstimate kept =
         estimate_timing_lag(recorder.commands(), recorder.samples(), run.table, run.base);
     ASSERT_TRUE(whole.ok) << whole.message;

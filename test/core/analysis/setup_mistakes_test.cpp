@@ -33,8 +33,18 @@ Eigen::Vector3d eq4(int phase, double a) {
   }
 }
 
-enum class Mistake { None, SignFlipY, SignFlipZ, SwapXY, OutputsInG, OutputsInCounts, Motionless,
-                     Silent, RotatedMount, CubicEffect };
+enum class Mistake {
+  None,
+  SignFlipY,
+  SignFlipZ,
+  SwapXY,
+  OutputsInG,
+  OutputsInCounts,
+  Motionless,
+  Silent,
+  RotatedMount,
+  CubicEffect
+};
 
 struct Device {
   Eigen::Matrix3d S;
@@ -149,14 +159,14 @@ TEST_P(SetupMistakeHidden, NamedAndNothingElse) {
 
 INSTANTIATE_TEST_SUITE_P(
     Each, SetupMistakeHidden,
-    ::testing::Values(Expected{Mistake::SignFlipY, {"axis_sign[y]"}, "wrong way"},
-                      Expected{Mistake::SignFlipZ, {"axis_sign[z]"}, "wrong way"},
-                      Expected{Mistake::SwapXY, {"axes_swapped[x]", "axes_swapped[y]"},
-                               "about its y axis"},
-                      Expected{Mistake::OutputsInG, {"output_unit"}, "in g"},
-                      Expected{Mistake::OutputsInCounts, {"output_unit"}, "counts"},
-                      Expected{Mistake::Motionless, {"imu_motionless"}, "same at every pose"},
-                      Expected{Mistake::Silent, {"imu_silent"}, "no IMU sample"}));
+    ::testing::Values(
+        Expected{Mistake::SignFlipY, {"axis_sign[y]"}, "wrong way"},
+        Expected{Mistake::SignFlipZ, {"axis_sign[z]"}, "wrong way"},
+        Expected{Mistake::SwapXY, {"axes_swapped[x]", "axes_swapped[y]"}, "about its y axis"},
+        Expected{Mistake::OutputsInG, {"output_unit"}, "in g"},
+        Expected{Mistake::OutputsInCounts, {"output_unit"}, "counts"},
+        Expected{Mistake::Motionless, {"imu_motionless"}, "same at every pose"},
+        Expected{Mistake::Silent, {"imu_silent"}, "no IMU sample"}));
 
 // The fix names the axis-map entry to change.
 TEST(SetupMistakes, FixNamesTheAxisMapEntry) {
@@ -170,8 +180,7 @@ TEST(SetupMistakes, FixNamesTheAxisMapEntry) {
 // A user who said output_unit: counts is believed: counts are then no mistake.
 TEST(SetupMistakes, DeclaredUnitIsBelieved) {
   std::mt19937_64 rng(6);
-  const PositionTable table =
-      write_run(random_device_here(rng), Mistake::OutputsInCounts, 24, 6);
+  const PositionTable table = write_run(random_device_here(rng), Mistake::OutputsInCounts, 24, 6);
   SetupOptions o;
   o.output_unit = "counts";
   EXPECT_TRUE(detect_setup_mistakes(table, o).empty());
@@ -232,7 +241,8 @@ TEST(SetupMistakes, AnalysisOfACleanRunGoesOn) {
   EXPECT_EQ(r.stop_reason.find("setup mistake"), std::string::npos) << r.stop_reason;
 }
 
-// The gate: its reason names the mistake and offers --unknown-orientations, not "wrong g or units?".
+// The gate: its reason names the mistake and offers --unknown-orientations, not "wrong g or
+// units?".
 TEST(SetupMistakes, GateNamesTheMistake) {
   for (Mistake m : {Mistake::SignFlipY, Mistake::OutputsInG}) {
     std::mt19937_64 rng(13);
@@ -244,7 +254,7 @@ TEST(SetupMistakes, GateNamesTheMistake) {
     EXPECT_EQ(report.quality.reasons.front().rfind("setup mistake ", 0), 0u)
         << report.quality.summary();
     EXPECT_NE(report.quality.reasons.front().find(m == Mistake::SignFlipY ? "axis_sign[y]"
-                                                                           : "output_unit"),
+                                                                          : "output_unit"),
               std::string::npos)
         << report.quality.summary();
     EXPECT_NE(report.quality.summary().find("--unknown-orientations"), std::string::npos);

@@ -12,26 +12,26 @@
 #include <sstream>
 #include <string>
 
-#include "accel_intrinsics/core/run/calibration_run.h"
+#include "../../support/analysis_checks.h"
+#include "../../support/random_device.h"
+#include "../../support/statistical_bounds.h"
 #include "accel_intrinsics/core/analysis/discrepancy.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
-#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/run/calibration_run.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
-#include "../../support/analysis_checks.h"
-#include "../../support/statistical_bounds.h"
-#include "../../support/random_device.h"
 
 namespace accel_intrinsics {
 namespace core {
 namespace {
 
-using testing_devices::random_device;
+using analysis_checks::ambiguous_pair;
 using analysis_checks::describe;
 using analysis_checks::detection_threshold;
 using analysis_checks::find_candidate;
 using analysis_checks::find_named;
-using analysis_checks::ambiguous_pair;
+using testing_devices::random_device;
 
 double run_duration_s(const SimulationOptions& so) {
   return build_schedule(so.protocol).back().dwell_end_s;
@@ -63,7 +63,8 @@ bool mentions(const std::vector<std::string>& notes, const std::string& a, const
   return false;
 }
 
-// ---- The model term, against the docs/design.md equations written out here ------------------------
+// ---- The model term, against the docs/design.md equations written out here
+// ------------------------
 
 TEST(Temperature, ModelTermsFollowTheDesignEquations) {
   std::mt19937_64 rng(3);
@@ -185,7 +186,8 @@ TEST(Temperature, AssemblerRecordsTheMeanReadingOfEachDwell) {
     EXPECT_NEAR(row.temperature_c, sum / n, 1e-12);
   }
   EXPECT_EQ(assembler.counters().channel_used[channel_index(Channel::Temperature)], used);
-  EXPECT_EQ(assembler.counters().channel_dropped[channel_index(Channel::Temperature)], rec.temperatures.size() - used);
+  EXPECT_EQ(assembler.counters().channel_dropped[channel_index(Channel::Temperature)],
+            rec.temperatures.size() - used);
 }
 
 // The calibration node's core: temperatures on the IMU's clock (imu_time_offset_s shifts them
@@ -282,8 +284,9 @@ TEST_P(TemperatureHiddenEffect, NamedAndRecovered) {
   const int trials = 6;
   const analysis_checks::TrialBands bands = analysis_checks::trial_bands(2 * trials, 3);
   const AnalysisOptions defaults;
-  const double false_alarm = defaults.alpha + 4.0 * std::sqrt(defaults.alpha * (1.0 - defaults.alpha) /
-                                                              defaults.monte_carlo_draws);
+  const double false_alarm =
+      defaults.alpha +
+      4.0 * std::sqrt(defaults.alpha * (1.0 - defaults.alpha) / defaults.monte_carlo_draws);
   const int drift_allowed = statistical_bounds::binomial_upper(trials, false_alarm, 1e-4);
   int drift_named = 0;
   for (int trial = 0; trial < trials; ++trial) {

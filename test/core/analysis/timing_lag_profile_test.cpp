@@ -18,9 +18,9 @@
 #include <random>
 #include <string>
 
+#include "accel_intrinsics/core/analysis/raw_stream_analysis.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/fit/fit.h"
-#include "accel_intrinsics/core/analysis/raw_stream_analysis.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace accel_intrinsics {
@@ -171,8 +171,7 @@ TEST(TimingLagProfile, StrongRingingBiasesTheLagLateAndShowsInTheChiSquare) {
   double sum_error = 0.0, sum_std = 0.0;
   for (std::uint64_t seed = 8; seed <= 10; ++seed) {
     const TimingLagEstimate est = estimate(make_streams(ringing, kLag, seed));
-    std::printf("ringing 20 mrad: %s (reduced chi2 %.3f)\n", est.message.c_str(),
-                est.reduced_chi2);
+    std::printf("ringing 20 mrad: %s (reduced chi2 %.3f)\n", est.message.c_str(), est.reduced_chi2);
     ASSERT_TRUE(est.ok) << est.message;
     EXPECT_GT(est.reduced_chi2, 1.08);
     sum_error += est.lag_s - kLag;

@@ -10,10 +10,10 @@
 #include <iostream>
 #include <random>
 
-#include "accel_intrinsics/core/model/constants.h"
-#include "accel_intrinsics/core/fit/fit.h"
-#include "accel_intrinsics/core/simulation/simulator.h"
 #include "../../support/random_device.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -370,8 +370,7 @@ TEST(UncertaintyBudget, AxisTiltMovesTheOffsetsByGTauOverThreeAsTheTestsJacobian
   spec.axis_tilt_std_deg = 0.05;
   const double sigma = deg_to_rad(spec.axis_tilt_std_deg);
   const BudgetSource mc = source(uncertainty_budget(table, fit, spec), "axis_tilt_std_deg");
-  const BudgetSource lin =
-      source(linear_propagation_budget(table, fit, spec), "axis_tilt_std_deg");
+  const BudgetSource lin = source(linear_propagation_budget(table, fit, spec), "axis_tilt_std_deg");
   const Eigen::Matrix<double, 9, 1> own = rig_linear_std(fit, steps, true, sigma);
   for (int c = 0; c < 3; ++c) {
     const double analytic = fit.local_gravity * sigma * truth.S.row(c).norm() / 3.0;

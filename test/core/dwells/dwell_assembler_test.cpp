@@ -1,16 +1,18 @@
+#include "accel_intrinsics/core/dwells/dwell_assembler.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <random>
 
-#include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace core = accel_intrinsics::core;
 
 namespace {
-core::GimbalEvent command(double t, core::Phase phase, std::uint32_t step, core::GimbalState state) {
+core::GimbalEvent command(double t, core::Phase phase, std::uint32_t step,
+                          core::GimbalState state) {
   core::GimbalEvent e;
   e.stamp_s = t;
   e.phase = phase;
@@ -73,9 +75,9 @@ TEST(DwellAssembler, CountsNonFiniteBackwardsLateAndSettleDiscard) {
   using S = core::GimbalState;
   assembler.add_command(command(0.0, core::Phase::Y, 0, S::Moving));
   assembler.add_command(command(1.0, core::Phase::Y, 0, S::Settled));
-  assembler.add_sample(sample(1.1, 5));   // in the settle-discard window
+  assembler.add_sample(sample(1.1, 5));  // in the settle-discard window
   assembler.add_sample(sample(1.3, 1));
-  assembler.add_sample(sample(1.3, 2));   // the stamp again, other values: clock went back
+  assembler.add_sample(sample(1.3, 2));  // the stamp again, other values: clock went back
   assembler.add_sample(sample(1.4, std::nan("")));
   assembler.add_sample(sample(1.5, 3));
   assembler.add_sample(sample(2.0, 5));
@@ -99,19 +101,28 @@ TEST(DwellAssembler, ReorderWindowMakesArrivalOrderIrrelevant) {
   sim.protocol.dwell_s = 1.0;
   sim.rate_hz = 200;
   const core::Recording rec = core::simulate_recording(sim);
-  struct Msg { double arrival; bool is_command; std::size_t i; };
+  struct Msg {
+    double arrival;
+    bool is_command;
+    std::size_t i;
+  };
   std::vector<Msg> ordered;
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> delay(0.0, 0.2);
-  for (std::size_t i = 0; i < rec.commands.size(); ++i) ordered.push_back({rec.commands[i].stamp_s + delay(rng), true, i});
-  for (std::size_t i = 0; i < rec.samples.size(); ++i) ordered.push_back({rec.samples[i].stamp_s + 0.01, false, i});
-  std::sort(ordered.begin(), ordered.end(), [](const Msg& a, const Msg& b) { return a.arrival < b.arrival; });
+  for (std::size_t i = 0; i < rec.commands.size(); ++i)
+    ordered.push_back({rec.commands[i].stamp_s + delay(rng), true, i});
+  for (std::size_t i = 0; i < rec.samples.size(); ++i)
+    ordered.push_back({rec.samples[i].stamp_s + 0.01, false, i});
+  std::sort(ordered.begin(), ordered.end(),
+            [](const Msg& a, const Msg& b) { return a.arrival < b.arrival; });
 
   core::DwellAssembler in_order, shuffled;
   core::feed_in_stamp_order(rec, &in_order);
   for (const auto& m : ordered) {
-    if (m.is_command) shuffled.add_command(rec.commands[m.i]);
-    else shuffled.add_sample(rec.samples[m.i]);
+    if (m.is_command)
+      shuffled.add_command(rec.commands[m.i]);
+    else
+      shuffled.add_sample(rec.samples[m.i]);
   }
   shuffled.flush();
   ASSERT_EQ(in_order.table().rows.size(), 18u);
@@ -133,11 +144,16 @@ TEST(DwellAssembler, ShuffledAndDuplicatedSamplesGiveTheSameTable) {
   sim.protocol.dwell_s = 1.0;
   sim.rate_hz = 200;
   const core::Recording rec = core::simulate_recording(sim);
-  struct Msg { double arrival; bool is_command; std::size_t i; };
+  struct Msg {
+    double arrival;
+    bool is_command;
+    std::size_t i;
+  };
   std::vector<Msg> messages;
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> delay(0.0, 0.2);
-  for (std::size_t i = 0; i < rec.commands.size(); ++i) messages.push_back({rec.commands[i].stamp_s, true, i});
+  for (std::size_t i = 0; i < rec.commands.size(); ++i)
+    messages.push_back({rec.commands[i].stamp_s, true, i});
   std::uint64_t copies = 0;
   for (std::size_t i = 0; i < rec.samples.size(); ++i) {
     messages.push_back({rec.samples[i].stamp_s + delay(rng), false, i});
@@ -146,14 +162,17 @@ TEST(DwellAssembler, ShuffledAndDuplicatedSamplesGiveTheSameTable) {
       ++copies;
     }
   }
-  std::sort(messages.begin(), messages.end(), [](const Msg& a, const Msg& b) { return a.arrival < b.arrival; });
+  std::sort(messages.begin(), messages.end(),
+            [](const Msg& a, const Msg& b) { return a.arrival < b.arrival; });
   core::AssemblerOptions options;
   options.reorder_window_s = 0.25;
   core::DwellAssembler in_order(options), messy(options);
   core::feed_in_stamp_order(rec, &in_order);
   for (const auto& m : messages) {
-    if (m.is_command) messy.add_command(rec.commands[m.i]);
-    else messy.add_sample(rec.samples[m.i]);
+    if (m.is_command)
+      messy.add_command(rec.commands[m.i]);
+    else
+      messy.add_sample(rec.samples[m.i]);
   }
   messy.flush();
   ASSERT_EQ(messy.table().rows.size(), in_order.table().rows.size());
@@ -257,8 +276,12 @@ TEST(DwellAssembler, ReleasesInStampOrderWhateverMixOfInOrderAndLateArrivals) {
   core::DwellAssembler assembler(options);
   std::vector<std::pair<double, char>> released;  // (stamp, 'c' command / 's' sample)
   assembler.set_release_observers(
-      [&](const core::GimbalEvent& c) { released.push_back({c.stamp_s, 'c'}); },
-      [&](const core::ImuSample& s) { released.push_back({s.stamp_s, 's'}); });
+      [&](const core::GimbalEvent& c) {
+        released.push_back({c.stamp_s, 'c'});
+      },
+      [&](const core::ImuSample& s) {
+        released.push_back({s.stamp_s, 's'});
+      });
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::vector<double> stamps;

@@ -1,21 +1,21 @@
 // Replays every input under fuzz/corpus/position_table (seeds and any crash the fuzzer found,
 // committed there) through the CSV reader: each must be rejected cleanly or round-trip exactly.
-#include <gtest/gtest.h>
-
 #include <dirent.h>
+#include <gtest/gtest.h>
 
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/dwells/position_table.h"
 #include "../../support/source_dir.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 
 namespace core = accel_intrinsics::core;
 
 TEST(FuzzRegression, PositionTableCorpusIsRejectedCleanlyOrRoundTrips) {
-  const std::string dir = accel_intrinsics::test_support::source_dir() + "/fuzz/corpus/position_table";
+  const std::string dir =
+      accel_intrinsics::test_support::source_dir() + "/fuzz/corpus/position_table";
   DIR* handle = opendir(dir.c_str());
   ASSERT_NE(handle, nullptr) << dir;
   std::vector<std::string> files;

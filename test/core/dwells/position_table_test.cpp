@@ -1,10 +1,11 @@
+#include "accel_intrinsics/core/dwells/position_table.h"
+
 #include <gtest/gtest.h>
 
 #include <random>
 #include <sstream>
 
 #include "accel_intrinsics/core/model/constants.h"
-#include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/model/protocol.h"
 
 namespace core = accel_intrinsics::core;
@@ -64,7 +65,8 @@ TEST(DwellAccumulator, MatchesTwoPassStatisticsOnLargeOffsets) {
   EXPECT_TRUE(acc.mean().isApprox(mean, 1e-14));
   // At an offset of 1e6 the data carry only ~9 digits of the 1e-3 spread: 1e-6 relative is the
   // best any method can do (a naive sum of squares would have no correct digit at all).
-  for (int k = 0; k < 3; ++k) EXPECT_NEAR(acc.sample_std()(k), std::sqrt(var(k)), 1e-6 * std::sqrt(var(k)));
+  for (int k = 0; k < 3; ++k)
+    EXPECT_NEAR(acc.sample_std()(k), std::sqrt(var(k)), 1e-6 * std::sqrt(var(k)));
   acc.reset();
   acc.add(Eigen::Vector3d(1, 2, 3));
   EXPECT_EQ(acc.sample_std(), Eigen::Vector3d::Zero());
@@ -96,7 +98,8 @@ TEST(PositionTableCsv, MalformedRowsAreRejectedWithLineAndField) {
   std::string msg = expect_error(kHeader + kGoodRow + "x,1,0.5,1,3,200,0.1,0.2\n");
   EXPECT_NE(msg.find("table.csv line 3"), std::string::npos) << msg;
   EXPECT_NE(msg.find("expected 12 fields"), std::string::npos) << msg;
-  msg = expect_error(kHeader + kGoodRow + kGoodRow + "q,1,0.5,1,3,200,0.1,0.2,9.8,0.01,0.01,0.01\n");
+  msg =
+      expect_error(kHeader + kGoodRow + kGoodRow + "q,1,0.5,1,3,200,0.1,0.2,9.8,0.01,0.01,0.01\n");
   EXPECT_NE(msg.find("line 4"), std::string::npos) << msg;
   EXPECT_NE(msg.find("phase"), std::string::npos) << msg;
   msg = expect_error(kHeader + "y,1,0.5,1,3,200,0.1,abc,9.8,0.01,0.01,0.01\n");
@@ -115,7 +118,8 @@ TEST(PositionTableCsv, MalformedRowsAreRejectedWithLineAndField) {
 }
 
 TEST(PositionTableCsv, ToleratesCrLfCommentsAndBlankLines) {
-  std::istringstream in("# exported by a rig without ROS\r\n" + std::string(core::kPositionTableHeader) +
+  std::istringstream in("# exported by a rig without ROS\r\n" +
+                        std::string(core::kPositionTableHeader) +
                         "\r\n\r\nx,0,0,1,3,200,0.1,0.2,9.8,0.01,0.01,0.01\r\n");
   const auto table = core::read_position_table(in);
   ASSERT_EQ(table.rows.size(), 1u);
@@ -207,7 +211,8 @@ TEST(PositionTableCsv, ChannelColumnsAreReadByNameAndWrittenWhenARowHasAValue) {
   ASSERT_EQ(table.rows.size(), 2u);
   EXPECT_FALSE(table.rows[0].has_temperature());
   EXPECT_EQ(table.rows[1].temperature_c, 23.5);
-  EXPECT_TRUE(core::columns_needed(table).channels[core::channel_index(core::Channel::Temperature)]);
+  EXPECT_TRUE(
+      core::columns_needed(table).channels[core::channel_index(core::Channel::Temperature)]);
   EXPECT_FALSE(core::columns_needed(table.rows[0]).channels[0]);
 
   std::ostringstream out;
@@ -216,7 +221,8 @@ TEST(PositionTableCsv, ChannelColumnsAreReadByNameAndWrittenWhenARowHasAValue) {
   std::istringstream back(out.str());
   EXPECT_EQ(core::read_position_table(back).rows[1].temperature_c, 23.5);
 
-  EXPECT_NE(expect_error(base + ",humidity\n").find("unknown column 'humidity'"), std::string::npos);
+  EXPECT_NE(expect_error(base + ",humidity\n").find("unknown column 'humidity'"),
+            std::string::npos);
   EXPECT_NE(expect_error(base + ",temperature_c,temperature_c\n").find("twice"), std::string::npos);
   EXPECT_NE(expect_error(base + ",temperature_c,f_x,f_y,f_z\n").find("unknown column 'f_x'"),
             std::string::npos);
@@ -278,13 +284,15 @@ TEST(PositionTableGeometry, RemeasuredDwellsOfARetriedPositionAreFound) {
 TEST(PositionTableGeometry, ApproachesOfARetriedTwoWayRunMatchTheSweepOnceTheRepeatIsDropped) {
   using core::Phase;
   core::PositionTable table;
-  for (std::uint32_t s : {0u, 1u, 1u, 2u, 3u, 3u, 2u, 1u, 0u}) table.rows.push_back(visit(Phase::Y, s));
+  for (std::uint32_t s : {0u, 1u, 1u, 2u, 3u, 3u, 2u, 1u, 0u})
+    table.rows.push_back(visit(Phase::Y, s));
   const core::SupersededRows found = core::find_remeasured_rows(table);
   ASSERT_EQ(found.rows, (std::vector<std::size_t>{1}));
   const core::PositionTable kept = core::without_rows(table, found.rows);
   ASSERT_EQ(kept.rows.size(), 8u);
   std::vector<int> approaches;
-  for (const core::DwellGeometry& g : core::dwell_geometries(kept)) approaches.push_back(g.approach);
+  for (const core::DwellGeometry& g : core::dwell_geometries(kept))
+    approaches.push_back(g.approach);
   EXPECT_EQ(approaches, (std::vector<int>{+1, +1, +1, +1, -1, -1, -1, -1}));
   // Kept as it was, the repeat would have been taken as a turn of the sweep.
   std::vector<int> naive;

@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
+#include "../../support/statistical_bounds.h"
 #include "accel_intrinsics/core/model/model.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
-#include "../../support/statistical_bounds.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -152,8 +152,8 @@ TEST(Fit, NoisyJointIsConsistent) {
 }
 
 // On an inexact (noisy) fit the residuals and their RMS are computed here from the fitted S and
-// O and the specific force written out (docs/design.md section 1): RMS = sqrt(sum |r_i|^2 / 3N) over
-// the 3N residual components (over N it would be sqrt(3) larger), chi2 with the dwell standard
+// O and the specific force written out (docs/design.md section 1): RMS = sqrt(sum |r_i|^2 / 3N)
+// over the 3N residual components (over N it would be sqrt(3) larger), chi2 with the dwell standard
 // errors std / sqrt(n).
 TEST(Fit, ResidualRmsIsOverTheThreeNComponentsOnAnInexactFit) {
   std::mt19937_64 rng(17);
@@ -463,8 +463,8 @@ TEST(FitEffects, NoisyRecoveryRateWithinReportedUncertainty) {
   for (const EffectCase& c : effect_cases()) {
     SCOPED_TRACE(std::string(c.name) + "[" + c.target + "]");
     for (int seed = 0; seed < seeds; ++seed) {
-      const SimulationOptions sim =
-          effect_simulation(c, 2300 + static_cast<std::uint64_t>(seed), SimulationOptions().noise_density);
+      const SimulationOptions sim = effect_simulation(c, 2300 + static_cast<std::uint64_t>(seed),
+                                                      SimulationOptions().noise_density);
       const PositionTable table = simulate_position_table(sim);
       FitOptions opt;
       opt.effects = {make_effect(c.name, c.target, 0.0)};

@@ -10,14 +10,13 @@
 #include <random>
 #include <sstream>
 
+#include "../../support/statistical_bounds.h"
 #include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
-#include "../../support/statistical_bounds.h"
 
 namespace accel_intrinsics {
 namespace core {
 namespace {
-
 
 Eigen::Matrix3d device_S() {
   Eigen::Matrix3d S;
@@ -41,7 +40,8 @@ PositionTable table_of(const std::vector<Eigen::Vector3d>& directions, std::uint
     r.t_start_s = time;
     r.t_end_s = time += 10.0;
     r.n = kSamples;
-    r.mean = device_S() * (kStandardGravity * r.direction) + kO + Eigen::Vector3d(n(rng), n(rng), n(rng));
+    r.mean = device_S() * (kStandardGravity * r.direction) + kO +
+             Eigen::Vector3d(n(rng), n(rng), n(rng));
     r.std = Eigen::Vector3d::Constant(kNoise);
     t.rows.push_back(r);
   }
@@ -151,10 +151,10 @@ TEST(Orientations, TumbleOf24RecoversTheDeviceWithHonestUncertainty) {
     EXPECT_GE(r.covariance(5, 5), e.c0(5, 5));
   }
   const auto band = sb::chi2_band(draws, 5e-4);
-  EXPECT_GT(sum_z2, band.first) << "observed rms " << std::sqrt(sum_sq / draws)
-                                << " vs reported " << reported / draws;
-  EXPECT_LT(sum_z2, band.second) << "observed rms " << std::sqrt(sum_sq / draws)
-                                 << " vs reported " << reported / draws;
+  EXPECT_GT(sum_z2, band.first) << "observed rms " << std::sqrt(sum_sq / draws) << " vs reported "
+                                << reported / draws;
+  EXPECT_LT(sum_z2, band.second) << "observed rms " << std::sqrt(sum_sq / draws) << " vs reported "
+                                 << reported / draws;
 }
 
 TEST(Orientations, Eq4RefusesDirectionRows) {

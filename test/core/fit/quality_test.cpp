@@ -7,9 +7,9 @@
 
 #include <random>
 
+#include "../../support/random_device.h"
 #include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
-#include "../../support/random_device.h"
 
 namespace accel_intrinsics {
 namespace core {

@@ -1,26 +1,27 @@
-// The hand tumble (docs/design.md section 11): rests found in the stream, |P (mean - O)| = g, coverage
-// and the next pose. Truth comes from core::simulate_hand_tumble (the one model) and, for the rest
-// detector's edge cases, from streams written here sample by sample.
+// The hand tumble (docs/design.md section 11): rests found in the stream, |P (mean - O)| = g,
+// coverage and the next pose. Truth comes from core::simulate_hand_tumble (the one model) and, for
+// the rest detector's edge cases, from streams written here sample by sample.
+#include "accel_intrinsics/core/fit/tumble.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
-#include <random>
 #include <cstdlib>
 #include <functional>
 #include <iostream>
+#include <random>
 #include <sstream>
 
-#include "accel_intrinsics/core/run/tumble_session.h"
 #include "../../support/statistical_bounds.h"
+#include "accel_intrinsics/core/analysis/tumble_analysis.h"
+#include "accel_intrinsics/core/dwells/rest_detection.h"
+#include "accel_intrinsics/core/dwells/samples_file.h"
 #include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/noise/noise.h"
 #include "accel_intrinsics/core/noise/rest_accumulator.h"
-#include "accel_intrinsics/core/dwells/rest_detection.h"
-#include "accel_intrinsics/core/dwells/samples_file.h"
-#include "accel_intrinsics/core/fit/tumble.h"
-#include "accel_intrinsics/core/analysis/tumble_analysis.h"
+#include "accel_intrinsics/core/run/tumble_session.h"
 #include "accel_intrinsics/core/simulation/tumble_simulator.h"
 
 namespace accel_intrinsics {
@@ -100,9 +101,9 @@ TEST(TumbleSession, RestsOneAtATimeTheStartingPosesThenTheFit) {
   TumbleSessionOptions so;
   TumbleSession session(so);
   const double c = 1.0 / std::sqrt(3.0);
-  const Eigen::Vector3d expected_poses[] = {
-      {0, 0, 1},  {0, 0, -1},  {1, 0, 0},   {-1, 0, 0},  {0, 1, 0},  {0, -1, 0},
-      {c, c, c},  {-c, -c, c}, {c, -c, -c}, {-c, c, -c}, {c, -c, c}, {-c, c, c}};
+  const Eigen::Vector3d expected_poses[] = {{0, 0, 1},   {0, 0, -1},  {1, 0, 0},  {-1, 0, 0},
+                                            {0, 1, 0},   {0, -1, 0},  {c, c, c},  {-c, -c, c},
+                                            {c, -c, -c}, {-c, c, -c}, {c, -c, c}, {-c, c, c}};
   EXPECT_EQ(session.progress().rests, 0u);
   EXPECT_TRUE(session.progress().next_up.isApprox(expected_poses[0], 1e-15));
   std::size_t last = 0;
@@ -221,7 +222,8 @@ TEST(Tumble, ResidualsAndTheirRmsOverThreeN) {
   double sum_sq = 0.0;
   for (std::size_t i = 0; i < t.rows.size(); ++i) {
     const Eigen::Vector3d a = P * (t.rows[i].mean - r.O);
-    const Eigen::Vector3d residual = t.rows[i].mean - (r.S * (r.local_gravity * a.normalized()) + r.O);
+    const Eigen::Vector3d residual =
+        t.rows[i].mean - (r.S * (r.local_gravity * a.normalized()) + r.O);
     EXPECT_LT((r.residuals[i] - residual).norm(), 1e-9) << i;
     sum_sq += residual.squaredNorm();
   }
@@ -355,8 +357,7 @@ TEST(Tumble, RawCountsWithQuantization) {
   const RestDetection found = detect_rests(rec.samples);
   ASSERT_EQ(found.rests.size(), rec.rests.size());
   const FitResult r = fit(table_of(found));
-  const Eigen::Matrix<double, 9, 1> z =
-      (estimate_of(r) - truth_of(d)).cwiseQuotient(std_of(r));
+  const Eigen::Matrix<double, 9, 1> z = (estimate_of(r) - truth_of(d)).cwiseQuotient(std_of(r));
   EXPECT_LT(z.cwiseAbs().maxCoeff(), statistical_bounds::normal_k(1e-3 / 9.0)) << z.transpose();
   EXPECT_NEAR(r.intrinsics.responsivity(0), d.S.row(0).norm(), 0.01 * d.S.row(0).norm());
 }
@@ -371,8 +372,7 @@ TEST(Tumble, TooFewRestsNamesHowManyMore) {
     fit(table_of(found));
     FAIL() << "no error";
   } catch (const FitError& e) {
-    EXPECT_NE(std::string(e.what()).find("7 rests, at least 10 needed (3 more)"),
-              std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("7 rests, at least 10 needed (3 more)"), std::string::npos)
         << e.what();
   }
 }
@@ -463,7 +463,8 @@ TEST(Tumble, SuggestedPoseBeatsARandomPose) {
     }
     auto largest = [](const FitResult& r) {
       double worst = 0.0;
-      for (const RelativeUncertainty& u : relative_uncertainties(r)) worst = std::max(worst, u.value);
+      for (const RelativeUncertainty& u : relative_uncertainties(r))
+        worst = std::max(worst, u.value);
       return worst;
     };
     // Four more rests: each at the pose suggested by the fit so far, or each at a random pose.
@@ -479,7 +480,8 @@ TEST(Tumble, SuggestedPoseBeatsARandomPose) {
     if (largest(fit(guided)) < largest(fit(unguided))) ++suggestion_wins;
   }
   // Far more often than a coin would (binomial(40, 0.5) upper tail at 1e-3).
-  EXPECT_GT(suggestion_wins, statistical_bounds::binomial_upper(seeds, 0.5, 1e-3)) << suggestion_wins;
+  EXPECT_GT(suggestion_wins, statistical_bounds::binomial_upper(seeds, 0.5, 1e-3))
+      << suggestion_wins;
 }
 
 TEST(Tumble, DescribePoseInWords) {
@@ -487,7 +489,6 @@ TEST(Tumble, DescribePoseInWords) {
   EXPECT_EQ(describe_pose(Eigen::Vector3d(-1, 0.05, 0)), "x axis pointing straight down");
   EXPECT_EQ(describe_pose(Eigen::Vector3d(1, 0, -1)), "x axis 45 deg up, z axis 45 deg down");
 }
-
 
 // ---- the tumble's discrepancy analysis --------------------------------------------------------
 
@@ -525,7 +526,8 @@ void expect_holm_by_hand(const TumbleAnalysis& a) {
     for (const TumbleEffectTest& t : step) p.push_back(t.p_raw);
     std::vector<std::size_t> order(p.size());
     for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return p[x] < p[y]; });
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t x, std::size_t y) { return p[x] < p[y]; });
     double running = 0.0;
     for (std::size_t k = 0; k < order.size(); ++k) {
       running = std::max(running, std::min(1.0, static_cast<double>(p.size() - k) * p[order[k]]));
@@ -638,7 +640,8 @@ TEST(RestDetection, JoltInsideARestIsCutOutAndTheRestKept) {
 TEST(RestDetection, ShortShakeInsideARest) {
   StreamWriter w;
   w.hold(kX, 4.0);
-  w.hold(kX, 0.6, [](double t) { return Eigen::Vector3d(0.0, 1.5 * std::sin(2 * M_PI * 6 * t), 0.8); });
+  w.hold(kX, 0.6,
+         [](double t) { return Eigen::Vector3d(0.0, 1.5 * std::sin(2 * M_PI * 6 * t), 0.8); });
   w.hold(kX, 4.0);
   const RestDetection d = detect_rests(w.samples);
   ASSERT_EQ(d.rests.size(), 1u);
@@ -712,7 +715,8 @@ TEST(RestDetection, GapAndBadStreams) {
   const RestDetection d = detect_rests(w.samples);
   EXPECT_EQ(d.rests.size(), 2u);
   bool named = false;
-  for (const RejectedSpan& s : d.rejected) named |= s.reason.find("gap in the stream") != std::string::npos;
+  for (const RejectedSpan& s : d.rejected)
+    named |= s.reason.find("gap in the stream") != std::string::npos;
   EXPECT_TRUE(named);
   std::vector<ImuSample> back = w.samples;
   std::swap(back[5], back[6]);
@@ -729,8 +733,9 @@ TEST(SamplesFile, ReadsCommaWhitespaceHeaderAndComments) {
   std::istringstream comma("t,x,y,z\n0.0,1,2,3\n0.01,1.5,2.5,3.5\n");
   EXPECT_EQ(read_samples(comma).size(), 2u);
   // imu_tk's layout: whitespace, exponent notation, no header.
-  std::istringstream spaces("   2.9840000e-02   3.3108000e+04   3.3329000e+04   3.6429000e+04\n"
-                            "# a comment\n\n   3.9857000e-02   3.3096000e+04   3.3336000e+04   3.6437000e+04\n");
+  std::istringstream spaces(
+      "   2.9840000e-02   3.3108000e+04   3.3329000e+04   3.6429000e+04\n"
+      "# a comment\n\n   3.9857000e-02   3.3096000e+04   3.3336000e+04   3.6437000e+04\n");
   const std::vector<ImuSample> s = read_samples(spaces);
   ASSERT_EQ(s.size(), 2u);
   EXPECT_DOUBLE_EQ(s[1].stamp_s, 3.9857e-02);

@@ -189,8 +189,7 @@ TEST(UnequalWeights, SimulatorMakesUnequalDwellsAndAxes) {
   EXPECT_EQ(n_max, 400u);
   const Eigen::Vector3d mean_std = std_sum / static_cast<double>(table.rows.size());
   // Average sample std of 72 dwells: within 2 % of the stated per-axis sigma.
-  for (int s = 0; s < 3; ++s)
-    EXPECT_NEAR(mean_std(s) / sample_noise_stds(sim)(s), 1.0, 0.02) << s;
+  for (int s = 0; s < 3; ++s) EXPECT_NEAR(mean_std(s) / sample_noise_stds(sim)(s), 1.0, 0.02) << s;
   // The raw streams follow the same timeline: the assembler finds the same sample counts.
   DwellAssembler assembler;
   feed_in_stamp_order(simulate_recording(sim), &assembler);
@@ -283,8 +282,8 @@ struct Scatter {
   // Scatter / reported within `band`, and no bias beyond 4.5 standard errors of the mean.
   void check(double band) const {
     for (std::size_t i = 0; i < truth.size(); ++i) {
-      std::printf("%-12s scatter %11.4g reported %11.4g ratio %.3f\n", names[i].c_str(),
-                  std_dev(i), mean_reported(i), std_dev(i) / mean_reported(i));
+      std::printf("%-12s scatter %11.4g reported %11.4g ratio %.3f\n", names[i].c_str(), std_dev(i),
+                  mean_reported(i), std_dev(i) / mean_reported(i));
       EXPECT_NEAR(std_dev(i) / mean_reported(i), 1.0, band) << names[i];
       EXPECT_LT(std::abs(mean_dev(i)), 4.5 * std_dev(i) / std::sqrt(n)) << names[i];
     }

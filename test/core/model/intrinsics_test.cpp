@@ -1,5 +1,6 @@
-// Tests of the intrinsic parameters (docs/design.md section 1), their GUM propagation, the conversion
-// from a measured cross-sensitivity matrix, and the mounting invariance of fitted intrinsics.
+// Tests of the intrinsic parameters (docs/design.md section 1), their GUM propagation, the
+// conversion from a measured cross-sensitivity matrix, and the mounting invariance of fitted
+// intrinsics.
 #include "accel_intrinsics/core/model/intrinsics.h"
 
 #include <gtest/gtest.h>
@@ -11,9 +12,9 @@
 #include <random>
 #include <string>
 
+#include "../../support/statistical_bounds.h"
 #include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
-#include "../../support/statistical_bounds.h"
 
 namespace accel_intrinsics {
 namespace core {

@@ -1,3 +1,5 @@
+#include "accel_intrinsics/core/model/protocol.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -6,7 +8,6 @@
 #include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/model/effects.h"
 #include "accel_intrinsics/core/model/model.h"
-#include "accel_intrinsics/core/model/protocol.h"
 
 namespace core = accel_intrinsics::core;
 
@@ -264,8 +265,8 @@ TEST(Model, ClosingPositionAngleIsNotWrapped) {
 TEST(Effects, NamesRoundTripAndBadNamesAreRejected) {
   for (const auto& info : core::effect_catalog()) {
     const char* target = info.target_kind == core::TargetKind::Accelerometer ? "w"
-                         : info.target_kind == core::TargetKind::Phase     ? "z"
-                                                                           : "all";
+                         : info.target_kind == core::TargetKind::Phase       ? "z"
+                                                                             : "all";
     const core::Effect e = core::make_effect(info.name, target, 1.5);
     EXPECT_EQ(e.name(), info.name);
     EXPECT_EQ(e.target_name(), target);

@@ -59,8 +59,8 @@ TEST(StageKinematics, DefaultAxisMapIsSection1) {
     core::Phase phase;
     bool alpha_on_x;
     double other_deg;
-  } rows[] = {{core::Phase::X, true, 0.0}, {core::Phase::Y, true, 90.0},
-              {core::Phase::Z, false, 90.0}};
+  } rows[] = {
+      {core::Phase::X, true, 0.0}, {core::Phase::Y, true, 90.0}, {core::Phase::Z, false, 90.0}};
   for (const Row& row : rows) {
     for (double a_deg : {0.0, 15.0, 60.0, 90.0, 137.5, 180.0, 250.0, 300.0, 359.0}) {
       const double a = a_deg * deg;
@@ -70,8 +70,8 @@ TEST(StageKinematics, DefaultAxisMapIsSection1) {
       const Eigen::Matrix3d R = core::stage_rotation(s);
       const Eigen::Vector3d f = R.transpose() * Eigen::Vector3d(0.0, 0.0, kG);
       EXPECT_NEAR((f - section1_force(row.phase, a)).norm(), 0.0, 1e-12)
-          << "phase " << core::phase_name(row.phase) << " alpha " << a_deg << " deg: "
-          << f.transpose();
+          << "phase " << core::phase_name(row.phase) << " alpha " << a_deg
+          << " deg: " << f.transpose();
       EXPECT_NEAR((core::specific_force_in_dut(core::phase_pose(row.phase, a), kG) -
                    section1_force(row.phase, a))
                       .norm(),

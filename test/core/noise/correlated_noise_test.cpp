@@ -1,5 +1,5 @@
-// Noise that is not white (issue 23, docs/design.md section 12): the noise model of a long rest, the
-// generalized least-squares fit it drives, the discrepancy analysis under a slow bias, and the
+// Noise that is not white (issue 23, docs/design.md section 12): the noise model of a long rest,
+// the generalized least-squares fit it drives, the discrepancy analysis under a slow bias, and the
 // cross-validated (out-of-sample) gap. Monte Carlo counts are kept small so the core suite stays
 // quick; bench/ holds nothing of this (the counts here are what was run).
 #include <gtest/gtest.h>
@@ -8,25 +8,25 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
-#include <optional>
-#include <stdexcept>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/run/calibrate.h"
+#include "../../support/statistical_bounds.h"
 #include "accel_intrinsics/core/analysis/discrepancy.h"
+#include "accel_intrinsics/core/analysis/tumble_analysis.h"
+#include "accel_intrinsics/core/dwells/rest_detection.h"
 #include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/model/protocol.h"
 #include "accel_intrinsics/core/noise/noise.h"
 #include "accel_intrinsics/core/noise/rest_accumulator.h"
-#include "accel_intrinsics/core/model/protocol.h"
-#include "accel_intrinsics/core/dwells/rest_detection.h"
+#include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
-#include "accel_intrinsics/core/analysis/tumble_analysis.h"
 #include "accel_intrinsics/core/simulation/tumble_simulator.h"
-#include "../../support/statistical_bounds.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -53,11 +53,11 @@ TEST(NoiseModel, SlowCovarianceMatchesTheDoubleIntegral) {
   const double origin = 1.0;
   auto gm = [&](double t, double s) { return 0.002 * 0.002 * std::exp(-std::abs(t - s) / 7.0); };
   auto rw = [&](double t, double s) { return 9e-8 * (std::min(t, s) - origin); };
-  const double cases[][4] = {{2, 4, 2, 4}, {2, 4, 10, 13}, {10, 13, 2, 4}, {2, 12, 5, 8},
-                             {1, 61, 1, 61}, {3, 3.5, 40, 41}};
+  const double cases[][4] = {{2, 4, 2, 4},  {2, 4, 10, 13}, {10, 13, 2, 4},
+                             {2, 12, 5, 8}, {1, 61, 1, 61}, {3, 3.5, 40, 41}};
   for (const auto& c : cases) {
-    SCOPED_TRACE(std::to_string(c[0]) + ".." + std::to_string(c[1]) + " x " +
-                 std::to_string(c[2]) + ".." + std::to_string(c[3]));
+    SCOPED_TRACE(std::to_string(c[0]) + ".." + std::to_string(c[1]) + " x " + std::to_string(c[2]) +
+                 ".." + std::to_string(c[3]));
     const double g = m.slow_covariance(0, c[0], c[1], c[2], c[3], origin);
     EXPECT_NEAR(g, brute_covariance(gm, c[0], c[1], c[2], c[3]), 1e-3 * std::abs(g) + 1e-14);
     const double r = m.slow_covariance(1, c[0], c[1], c[2], c[3], origin);
@@ -66,8 +66,8 @@ TEST(NoiseModel, SlowCovarianceMatchesTheDoubleIntegral) {
   // The variance of a dwell mean: white / n plus the slow part; long dwells approach sigma^2 2
   // tau / T (Gauss-Markov), short ones sigma^2.
   m.axes[0].white_std = 0.01;
-  EXPECT_NEAR(m.variance_of_mean(0, 2.0, 200.0),
-              1e-4 / 200.0 + m.slow_covariance(0, 0, 2, 0, 2, 0), 1e-18);
+  EXPECT_NEAR(m.variance_of_mean(0, 2.0, 200.0), 1e-4 / 200.0 + m.slow_covariance(0, 0, 2, 0, 2, 0),
+              1e-18);
   EXPECT_NEAR(m.slow_covariance(0, 0, 1e-4, 0, 1e-4, 0), 4e-6, 1e-9);
   EXPECT_NEAR(m.slow_covariance(0, 0, 7000, 0, 7000, 0) / (4e-6 * 2 * 7.0 / 7000), 1.0, 2e-3);
 }
@@ -168,8 +168,8 @@ TEST(NoiseModel, FindLongRest) {
 
 TEST(NoiseModel, LongRestRecorderKeepsTheRestOfALiveRun) {
   // A live run as the calibration node sees it: the assembler releases events and samples in
-  // stamp order to the recorder, which accumulates the first dwell's samples only; its noise model is
-  // the one of the whole recording's samples.
+  // stamp order to the recorder, which accumulates the first dwell's samples only; its noise model
+  // is the one of the whole recording's samples.
   SimulationOptions so;
   so.protocol.steps_per_phase = 6;
   so.protocol.initial_rest_s = 60.0;
@@ -285,9 +285,9 @@ TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesGaussMarkov) {
     add_z(fit(table, fo), so, &refined, true);
   }
   std::cout << "[ INFO     ] Gauss-Markov coverage, RMS z over " << runs
-            << " runs x 9 parameters: white " << white.rms() << ", true model "
-            << true_model.rms() << ", estimated model " << estimated.rms()
-            << ", estimated and fitted to the run " << refined.rms() << "\n";
+            << " runs x 9 parameters: white " << white.rms() << ", true model " << true_model.rms()
+            << ", estimated model " << estimated.rms() << ", estimated and fitted to the run "
+            << refined.rms() << "\n";
   const std::pair<double, double> band = statistical_bounds::chi2_band(runs, 1e-3);
   const double lo = std::sqrt(band.first / runs), hi = std::sqrt(band.second / runs);
   EXPECT_GT(white.rms(), 1.5);  // the problem: white weights are overconfident
@@ -333,10 +333,9 @@ TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesRandomWalk) {
     for (int s = 0; s < 3; ++s) refined_offsets.add((fr.O(s) - so.truth.O(s)) / fr.O_std(s));
   }
   std::cout << "[ INFO     ] random-walk coverage, RMS z over " << runs
-            << " runs x 6 parameters: white " << white.rms() << ", true model "
-            << true_model.rms() << ", estimated and fitted to the run " << refined.rms()
-            << "; offsets: true model " << true_offsets.rms() << ", fitted to the run "
-            << refined_offsets.rms() << "\n";
+            << " runs x 6 parameters: white " << white.rms() << ", true model " << true_model.rms()
+            << ", estimated and fitted to the run " << refined.rms() << "; offsets: true model "
+            << true_offsets.rms() << ", fitted to the run " << refined_offsets.rms() << "\n";
   const std::pair<double, double> band = statistical_bounds::chi2_band(runs, 1e-3);
   const double lo = std::sqrt(band.first / runs), hi = std::sqrt(band.second / runs);
   EXPECT_GT(white.rms(), 1.3);
@@ -352,7 +351,8 @@ TEST(CorrelatedNoise, CoverageOfTheReportedUncertaintiesRandomWalk) {
   EXPECT_LT(refined_offsets.rms(), 1.15);
 }
 
-// ---- the hand tumble under a slow bias -----------------------------------------------------------
+// ---- the hand tumble under a slow bias
+// -----------------------------------------------------------
 
 // A hand tumble (30 poses, 3.5-5 s rests, a 120 s first rest as the README recommends) with a
 // slow bias; its rests found
@@ -441,8 +441,8 @@ TumbleCoverage tumble_coverage(double gm_sigma, double gm_tau_s, double random_w
                                std::uint64_t seed0, int runs) {
   TumbleCoverage c;
   for (int k = 0; k < runs; ++k) {
-    const SlowTumble t = slow_tumble(seed0 + static_cast<std::uint64_t>(k), gm_sigma, gm_tau_s,
-                                     random_walk);
+    const SlowTumble t =
+        slow_tumble(seed0 + static_cast<std::uint64_t>(k), gm_sigma, gm_tau_s, random_walk);
     const std::optional<NoiseModel> estimated = noise_model_of_run(t.table, t.stamps, t.outputs);
     if (!estimated) throw std::runtime_error("no first rest of 30 s found");
     const NoiseModel models[4] = {NoiseModel(), true_noise_model(t.options), *estimated,
@@ -463,10 +463,9 @@ TumbleCoverage tumble_coverage(double gm_sigma, double gm_tau_s, double random_w
   }
   std::cout << "[ INFO     ] tumble RMS z (white, true model, rest's model, fitted to the run): "
                "intrinsics "
-            << c.intrinsics[0].rms() << " " << c.intrinsics[1].rms() << " "
-            << c.intrinsics[2].rms() << " " << c.intrinsics[3].rms() << ", offsets "
-            << c.offsets[0].rms() << " " << c.offsets[1].rms() << " " << c.offsets[2].rms() << " "
-            << c.offsets[3].rms() << "\n";
+            << c.intrinsics[0].rms() << " " << c.intrinsics[1].rms() << " " << c.intrinsics[2].rms()
+            << " " << c.intrinsics[3].rms() << ", offsets " << c.offsets[0].rms() << " "
+            << c.offsets[1].rms() << " " << c.offsets[2].rms() << " " << c.offsets[3].rms() << "\n";
   return c;
 }
 
@@ -519,9 +518,9 @@ TEST(CorrelatedNoise, WideningForAnEstimatedScaleIsTheEstimatesSensitivity) {
   PositionTable exact = simulate_position_table(so);
   for (DwellRecord& row : exact.rows) row.std = Eigen::Vector3d(0.02, 0.03, 0.025);
   NoiseModel model;
-  model.axes[0] = {0.02, 0.0, 0.0, 2e-4};      // a walk on u
-  model.axes[1] = {0.03, 0.002, 20.0, 0.0};    // Gauss-Markov on v
-  model.axes[2] = {0.025, 0.001, 5.0, 1e-4};   // both on w
+  model.axes[0] = {0.02, 0.0, 0.0, 2e-4};     // a walk on u
+  model.axes[1] = {0.03, 0.002, 20.0, 0.0};   // Gauss-Markov on v
+  model.axes[2] = {0.025, 0.001, 5.0, 1e-4};  // both on w
   FitOptions fo;
   fo.noise_model = model;
   const FitResult plain = fit(exact, fo);
@@ -557,7 +556,8 @@ TEST(CorrelatedNoise, WideningForAnEstimatedScaleIsTheEstimatesSensitivity) {
       for (Eigen::Index i = 0; i < n; ++i) xi(i) = normal(rng);
       const Eigen::VectorXd e = corr->L[s] * xi;
       for (Eigen::Index i = 0; i < n; ++i)
-        noisy.rows[static_cast<std::size_t>(i)].mean(s) += se[static_cast<std::size_t>(i)](s) * e(i);
+        noisy.rows[static_cast<std::size_t>(i)].mean(s) +=
+            se[static_cast<std::size_t>(i)](s) * e(i);
     }
     const FitResult a = fit(noisy, up), b = fit(noisy, down);
     Eigen::Matrix<double, 12, 1> d;
@@ -704,8 +704,8 @@ TEST(CorrelatedNoise, WhiteRunWithARecordedRestPaysForTheSlowPartItCannotExclude
     return v[v.size() / 2];
   };
   std::cout << "[ INFO     ] white runs with a recorded rest: RMS z " << coverage.rms()
-            << ", median std ratio to the white fit: responsivities "
-            << median(responsivity_ratios) << ", offsets " << median(offset_ratios) << "\n";
+            << ", median std ratio to the white fit: responsivities " << median(responsivity_ratios)
+            << ", offsets " << median(offset_ratios) << "\n";
   const std::pair<double, double> band = statistical_bounds::chi2_band(runs, 1e-3);
   EXPECT_LT(coverage.rms(), std::sqrt(band.second / runs));
   EXPECT_LT(median(responsivity_ratios), 1.2);
@@ -901,8 +901,7 @@ TEST(CorrelatedNoise, FalseAlarmRateOnEffectFreeCorrelatedNoise) {
 // The detection threshold of `kind` on `target` under the noise model: from the first screening
 // step of an effect-free run (the candidate's linearized std under GLS, and the max-T critical
 // value).
-double gls_threshold(const PositionTable& table, const NoiseModel& m, EffectKind kind,
-                     int target) {
+double gls_threshold(const PositionTable& table, const NoiseModel& m, EffectKind kind, int target) {
   const AnalysisResult a = analyze(table, quick_analysis(m));
   for (const CandidateScore& c : a.steps.front().candidates)
     if (c.effect.kind == kind && c.effect.target == target) return c.detection_threshold;
@@ -924,8 +923,8 @@ TEST(CorrelatedNoise, HiddenEffectsAreNamedUnderCorrelatedNoise) {
   // A second (false) effect beside the hidden one: allowed at the analysis' false-alarm rate
   // (FalseAlarmRateOnEffectFreeCorrelatedNoise), binomial (1 - 1e-3) over the 6 runs.
   int runs_with_extra = 0;
-  for (const Case c : {Case{EffectKind::QuadraticNonlinearity, 1, 4.0},
-                       Case{EffectKind::OffsetDrift, 2, 8.0}}) {
+  for (const Case c :
+       {Case{EffectKind::QuadraticNonlinearity, 1, 4.0}, Case{EffectKind::OffsetDrift, 2, 8.0}}) {
     for (std::uint64_t seed : {31u, 32u, 33u}) {
       SimulationOptions so = issue_scenario(seed);
       RestSamples rest;

@@ -10,8 +10,8 @@
 #include <random>
 #include <vector>
 
-#include "accel_intrinsics/core/simulation/simulator.h"
 #include "../../support/statistical_bounds.h"
+#include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace accel_intrinsics {
 namespace core {

@@ -4,21 +4,22 @@
 // definition, on streams written here from the equations (white noise, a random walk, a
 // Gauss-Markov bias, summed sample by sample) and on the real Xsens session; a 120 s rest at
 // 50 kHz used whole; memory that does not grow with the rest.
+#include "accel_intrinsics/core/noise/rest_accumulator.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
 #include <algorithm>
-#include <optional>
 #include <cmath>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "../../support/source_dir.h"
 #include "accel_intrinsics/core/dwells/rest_detection.h"
 #include "accel_intrinsics/core/dwells/samples_file.h"
 #include "accel_intrinsics/core/noise/noise.h"
-#include "accel_intrinsics/core/noise/rest_accumulator.h"
-#include "../../support/source_dir.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -160,8 +161,7 @@ TEST_P(RestAccumulatorAtRate, StreamedCurveAndBlocksAreTheBatchOnes) {
   const RestAccumulator acc = accumulate(s);
   ASSERT_EQ(acc.samples(), s.stamps.size());
   EXPECT_EQ(acc.rate_hz(), rate_of(s));
-  expect_same_curve(acc.allan_curve(), overlapping_allan_deviation(s.outputs, rate_of(s)),
-                    1e-10);
+  expect_same_curve(acc.allan_curve(), overlapping_allan_deviation(s.outputs, rate_of(s)), 1e-10);
   expect_blocks(acc, s);
   // The noise model: the batch fit on the stored samples (today's path), to rounding.
   const std::optional<NoiseModel> streamed = acc.noise_model();
@@ -213,8 +213,8 @@ TEST(RestAccumulator, A120sRestAt50kHzIsUsedWhole) {
 // imu_tk's real Xsens session (raw counts near 33000, 100 Hz, a 51 s first rest), its rests found
 // as offline_fit finds them: the streamed model is the batch one on the stored samples.
 TEST(RestAccumulator, XsensSessionModelIsTheBatchOne) {
-  const std::vector<ImuSample> samples = read_samples_file(
-      test_support::source_dir() + "/test/data/imu_tk_xsens/xsens_acc.mat");
+  const std::vector<ImuSample> samples =
+      read_samples_file(test_support::source_dir() + "/test/data/imu_tk_xsens/xsens_acc.mat");
   RestDetectionOptions options;
   options.min_rest_s = 2.0;  // offline_fit's --rest-min-s default
   PositionTable table;

@@ -295,7 +295,8 @@ TEST(CalibrationRun, CleanRunEndsWithOneFitOfEveryDwell) {
   EXPECT_TRUE(stand.aborts_.empty());
 }
 
-// ---- The noise model of the long rest (docs/design.md section 12) ---------------------------------
+// ---- The noise model of the long rest (docs/design.md section 12)
+// ---------------------------------
 
 // A 60 s first dwell under a slow bias (Gauss-Markov 0.002 m/s^2, 10 s).
 void long_rest_with_slow_bias(SimulationOptions* so) {

@@ -82,8 +82,7 @@ GimbalProtocolOptions test_options() {
 }
 
 bool same_position(const GimbalEvent& c, const ScheduledPosition& p) {
-  return c.phase == p.phase && c.step == p.step && c.steps == p.steps &&
-         c.angle_rad == p.angle_rad;
+  return c.phase == p.phase && c.step == p.step && c.steps == p.steps && c.angle_rad == p.angle_rad;
 }
 
 bool same_target(const GimbalTarget& t, const ScheduledPosition& p) {
@@ -305,8 +304,9 @@ TEST(GimbalProtocol, GimbalFaultAbortsWithTheDevicesWordsAndResumeRetriesThePosi
   std::ostringstream stamp;
   stamp.precision(17);
   stamp << shell.now_s;
-  EXPECT_NE(r.message.find("moving to phase y step 1, position 5 of 9, MOVING stamp=" + stamp.str()),
-            std::string::npos)
+  EXPECT_NE(
+      r.message.find("moving to phase y step 1, position 5 of 9, MOVING stamp=" + stamp.str()),
+      std::string::npos)
       << r.message;
   EXPECT_TRUE(shell.logged(ProtocolAction::Level::Warn, "the fake gimbal recovered"));
   ASSERT_TRUE(shell.run_until_state(ProtocolState::Done));

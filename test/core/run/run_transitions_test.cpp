@@ -12,8 +12,8 @@
 #include <utility>
 #include <vector>
 
-#include "accel_intrinsics/core/run/calibration_run.h"
 #include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/run/calibration_run.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -124,25 +124,56 @@ struct Driver {
 const std::vector<std::pair<std::string, std::function<void(Driver&)>>>& inputs() {
   static const std::vector<std::pair<std::string, std::function<void(Driver&)>>> list = {
       {"reset", [](Driver& d) { d.take(d.run.reset("test")); }},
-      {"MOVING", [](Driver& d) { d.t += 0.5; d.command(GimbalState::Moving, 1); d.tick(0.05); }},
-      {"SETTLED", [](Driver& d) { d.t += 0.5; d.command(GimbalState::Settled, 1); d.tick(0.05); }},
-      {"DONE", [](Driver& d) { d.t += 0.5; d.command(GimbalState::Done, 1); d.tick(0.05); }},
-      {"DONE, window passed", [](Driver& d) {
+      {"MOVING",
+       [](Driver& d) {
+         d.t += 0.5;
+         d.command(GimbalState::Moving, 1);
+         d.tick(0.05);
+       }},
+      {"SETTLED",
+       [](Driver& d) {
+         d.t += 0.5;
+         d.command(GimbalState::Settled, 1);
+         d.tick(0.05);
+       }},
+      {"DONE",
+       [](Driver& d) {
+         d.t += 0.5;
+         d.command(GimbalState::Done, 1);
+         d.tick(0.05);
+       }},
+      {"DONE, window passed",
+       [](Driver& d) {
          d.t += 0.5;
          d.command(GimbalState::Done, 1);
          d.tick();
        }},
-      {"DONE, fit failed", [](Driver& d) {
+      {"DONE, fit failed",
+       [](Driver& d) {
          d.t += 0.5;
          d.command(GimbalState::Done, 1);
          d.tick();
          d.take(d.run.on_fit_finished(d.ticket, false, "bad"));
        }},
       {"IMU stall", [](Driver& d) { d.tick(2.0); }},
-      {"new run", [](Driver& d) { d.t += 0.5; d.command(GimbalState::Moving, 0); }},
-      {"dwell", [](Driver& d) { d.t += 0.5; d.dwell(1, 20); d.command(GimbalState::Moving, 2); }},
+      {"new run",
+       [](Driver& d) {
+         d.t += 0.5;
+         d.command(GimbalState::Moving, 0);
+       }},
+      {"dwell",
+       [](Driver& d) {
+         d.t += 0.5;
+         d.dwell(1, 20);
+         d.command(GimbalState::Moving, 2);
+       }},
       {"short dwell",
-       [](Driver& d) { d.t += 0.5; d.dwell(1, 2); d.command(GimbalState::Moving, 2); d.tick(); }},
+       [](Driver& d) {
+         d.t += 0.5;
+         d.dwell(1, 2);
+         d.command(GimbalState::Moving, 2);
+         d.tick();
+       }},
       {"tick", [](Driver& d) { d.tick(); }},
       {"streams idle", [](Driver& d) { d.take(d.run.on_streams_idle()); }},
       {"fit published", [](Driver& d) { d.fit_finished(true, ""); }},
@@ -267,17 +298,20 @@ TEST(RunTransitions, EveryInputInEveryStateGoesWhereTheTableSays) {
       {S::Idle, E::FaultRetried},        // not reached: no dwell without a command; the target is
       {S::Idle, E::FaultAborted},        //   that of the other collecting states
       // A fault released by the window after DONE, or after a failed or published fit:
-      {S::Fitting, E::FaultRetried}, {S::Fitting, E::FaultAborted}, {S::Done, E::FaultAborted},
-      {S::FitFailed, E::FaultRetried}, {S::FitFailed, E::FaultAborted},
-      {S::FitFailed, E::ControllerFault}, {S::FitFailed, E::ResumeRequested},
+      {S::Fitting, E::FaultRetried},
+      {S::Fitting, E::FaultAborted},
+      {S::Done, E::FaultAborted},
+      {S::FitFailed, E::FaultRetried},
+      {S::FitFailed, E::FaultAborted},
+      {S::FitFailed, E::ControllerFault},
+      {S::FitFailed, E::ResumeRequested},
       {S::Fitting, E::ControllerFault},  // the controller aborting while DONE waits its window
       {S::Fitting, E::ResumeRequested},
   };
   for (const RunTransition& t : run_transition_table()) {
     if (elsewhere.count({t.from, t.event})) continue;
     EXPECT_TRUE(taken.count({t.from, t.event}))
-        << "row " << run_state_name(t.from) << " x " << run_event_name(t.event)
-        << " never taken";
+        << "row " << run_state_name(t.from) << " x " << run_event_name(t.event) << " never taken";
   }
 }
 

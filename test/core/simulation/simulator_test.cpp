@@ -1,9 +1,10 @@
+#include "accel_intrinsics/core/simulation/simulator.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
-#include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace core = accel_intrinsics::core;
 

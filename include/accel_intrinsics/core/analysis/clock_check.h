@@ -1,6 +1,6 @@
-// Do the IMU and the gimbal stamp on one clock? (docs/design.md section 5.) A DUT that turns changes
-// its outputs while the gimbal moves, so the motion seen in the IMU stream must fall inside the
-// gimbal's MOVING -> SETTLED intervals. ClockCheck collects a compact summary of both streams
+// Do the IMU and the gimbal stamp on one clock? (docs/design.md section 5.) A DUT that turns
+// changes its outputs while the gimbal moves, so the motion seen in the IMU stream must fall inside
+// the gimbal's MOVING -> SETTLED intervals. ClockCheck collects a compact summary of both streams
 // (IMU bin sums of `bin_s`, the gimbal's commands) and finds the shift of the IMU stamps:
 //  1. coarse: the shifts that put most of the IMU motion inside the moves (every shift that lets
 //     the streams overlap; periodic moves make shifts by whole steps almost as good);
@@ -33,7 +33,8 @@ struct ClockCheckOptions {
   // enough to rise above the noise, short against a move.
   double block_s = 0.1;
   double min_offset_s = 0.05;
-  double min_rate_hz = 20.0;  // sparser IMU streams are not checked  // smaller shifts pass (timing lag, filter delay)
+  double min_rate_hz = 20.0;  // sparser IMU streams are not checked  // smaller shifts pass (timing
+                              // lag, filter delay)
   // The IMU motion must follow the moves: at the best shift at least this share of it lies
   // inside them, or the check cannot tell (a DUT that does not turn, a table of other data).
   double min_explained = 0.5;
@@ -50,7 +51,7 @@ struct ClockCheckOptions {
 };
 
 struct ClockCheckResult {
-  bool checked = false;        // enough moves and IMU motion to tell
+  bool checked = false;         // enough moves and IMU motion to tell
   std::string not_checked_why;  // when !checked
   bool offset_found = false;
   // IMU stamp minus gimbal time of the same instant: positive = IMU stamps later. Shift the IMU

@@ -1,6 +1,6 @@
 // Discrepancy analysis: where do the measurements and the digital twin disagree, which effect of
-// the vocabulary (effects.h, docs/design.md section 3) is missing, and how much of the gap closes once
-// it is added (docs/design.md section 2: JSON keys `effects`, `ambiguous`, `gap`, written by
+// the vocabulary (effects.h, docs/design.md section 3) is missing, and how much of the gap closes
+// once it is added (docs/design.md section 2: JSON keys `effects`, `ambiguous`, `gap`, written by
 // io/analysis_report.h).
 //
 // Workflow of analyze():
@@ -40,13 +40,13 @@
 #include <vector>
 
 #include "accel_intrinsics/core/analysis/setup_mistakes.h"
-#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
-#include "accel_intrinsics/core/model/effects.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/fit/preconditions.h"
+#include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/model/effects.h"
 #include "accel_intrinsics/core/model/model.h"
-#include "accel_intrinsics/core/dwells/position_table.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -142,9 +142,9 @@ struct TimeBinGap {
   double rms = 0.0;
 };
 
-// Cross-validated chi-square per point (docs/design.md section 12): the dwells ordered in time and cut
-// into `folds` contiguous blocks; each block is predicted by the model fitted to the others, and
-// its residuals judged against the noise model's covariance of that block (white: the dwell
+// Cross-validated chi-square per point (docs/design.md section 12): the dwells ordered in time and
+// cut into `folds` contiguous blocks; each block is predicted by the model fitted to the others,
+// and its residuals judged against the noise model's covariance of that block (white: the dwell
 // standard errors). Sum over blocks / number of residuals. A missing effect raises it; a term
 // that only fits noise does not lower it (a drift extrapolates across blocks, a slow noise does
 // not). NaN when not computed or every fold failed to fit.
@@ -179,7 +179,7 @@ NoiseModel slow_part_from_run(const PositionTable& table, const FitOptions& opti
 
 struct Gap {
   GapSummary summary;
-  CrossValidatedGap cv;  // filled by analyze() for the `before` and `after` gaps
+  CrossValidatedGap cv;        // filled by analyze() for the `before` and `after` gaps
   std::vector<CellGap> cells;  // 9 cells, phase-major
   std::vector<TimeBinGap> time_bins;
   std::array<double, 3> trend_z{{0, 0, 0}};  // per accelerometer: t-statistic of z vs time

@@ -1,8 +1,8 @@
 // Analyses that need the raw streams (gimbal events and every IMU sample, e.g. from a bag), not
 // just the dwell means of the position table.
 //
-// timing_lag (docs/design.md section 3): the IMU stamps its samples late by `lag` seconds relative to
-// the gimbal. During a dwell the gimbal is at rest, so the dwell means cannot show it; during a
+// timing_lag (docs/design.md section 3): the IMU stamps its samples late by `lag` seconds relative
+// to the gimbal. During a dwell the gimbal is at rest, so the dwell means cannot show it; during a
 // move the outputs change, and with late stamps the change appears `lag` seconds late relative to
 // the MOVING/SETTLED commands. The estimator rebuilds the commanded trajectory from the events
 // (schedule_from_commands + gimbal_pose_at of simulator.h: the one motion model shared with the
@@ -27,9 +27,9 @@
 #include <vector>
 
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
-#include "accel_intrinsics/core/model/effects.h"
-#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/model/effects.h"
 #include "accel_intrinsics/core/model/protocol.h"
 
 namespace accel_intrinsics {
@@ -162,15 +162,16 @@ class MoveSampleRecorder {
 // problems: they come back as ok = false with a message. Throws std::invalid_argument for bad
 // options.
 //
-// A gimbal that moves otherwise than the motion model (test/core/analysis/timing_lag_profile_test.cpp,
-// streams made there without gimbal_pose_at): a symmetric profile of another shape (trapezoidal
-// velocity) leaves the lag unbiased (9.87 to 10.1 ms for 10 ms) and raises the reduced chi-square of the
-// move samples (1.21 to 1.23), which inflates std_s; a damped oscillation after SETTLED (20 mrad, 4 Hz,
-// 0.1 s) biases the lag late by about 3 of its inflated std (0.36 ms at std 0.12 ms for
-// 10 ms, mean of three runs) at reduced chi-square 1.14 to 1.17; the 2 mrad ringing of the
-// shipped simulated gimbal changes nothing visible. The reduced chi-square is the sign of such a mismatch, but it is no gate: on lag-free data
-// with short dwells it reaches 1.07 from the base fit's own error, so a 99.9 % chi-square bound
-// would withhold honest estimates.
+// A gimbal that moves otherwise than the motion model
+// (test/core/analysis/timing_lag_profile_test.cpp, streams made there without gimbal_pose_at): a
+// symmetric profile of another shape (trapezoidal velocity) leaves the lag unbiased (9.87 to 10.1
+// ms for 10 ms) and raises the reduced chi-square of the move samples (1.21 to 1.23), which
+// inflates std_s; a damped oscillation after SETTLED (20 mrad, 4 Hz, 0.1 s) biases the lag late by
+// about 3 of its inflated std (0.36 ms at std 0.12 ms for 10 ms, mean of three runs) at reduced
+// chi-square 1.14 to 1.17; the 2 mrad ringing of the shipped simulated gimbal changes nothing
+// visible. The reduced chi-square is the sign of such a mismatch, but it is no gate: on lag-free
+// data with short dwells it reaches 1.07 from the base fit's own error, so a 99.9 % chi-square
+// bound would withhold honest estimates.
 TimingLagEstimate estimate_timing_lag(const std::vector<GimbalEvent>& commands,
                                       const std::vector<ImuSample>& samples,
                                       const FitResult& base_fit, double time_origin_s,

@@ -10,7 +10,8 @@
 // turn from the 0 deg to the 90 deg response is a rotation about the axis n = d0 x d90:
 //  - n opposite to section 1's: axis_sign[p] (phase p turns the wrong way);
 //  - n along another DUT axis: axes_swapped[p] (phase p turns the DUT about that axis);
-//  - n right but the 0 deg response elsewhere: zero_offset[p] (alpha = 0 is not where eq. 4 has it);
+//  - n right but the 0 deg response elsewhere: zero_offset[p] (alpha = 0 is not where eq. 4 has
+//  it);
 //  - a response between axes or no turn at all: pose_unclear[p].
 // And for the whole stand: imu_silent (no samples), imu_motionless (no phase turns the readings:
 // a simulated gimbal with a real IMU, or an IMU not on the gimbal), output_unit (gravity reads
@@ -31,11 +32,11 @@ namespace accel_intrinsics {
 namespace core {
 
 struct SetupMistake {
-  std::string name;     // axis_sign, axes_swapped, zero_offset, pose_unclear, imu_motionless,
-                        // output_unit, imu_silent
-  std::string target;   // the phase ("x", "y", "z") for the per-phase mistakes, else empty
-  std::string finding;  // what was seen
-  std::string fix;      // what to change, in the axis map or the launch
+  std::string name;           // axis_sign, axes_swapped, zero_offset, pose_unclear, imu_motionless,
+                              // output_unit, imu_silent
+  std::string target;         // the phase ("x", "y", "z") for the per-phase mistakes, else empty
+  std::string finding;        // what was seen
+  std::string fix;            // what to change, in the axis map or the launch
   std::string label() const;  // "axis_sign[y]", "output_unit"
   std::string text() const;   // "axis_sign[y]: <finding>; fix: <fix>"
 };
@@ -110,8 +111,7 @@ bool stop_analysis_on_setup_mistakes(const PositionTable& table, const AnalysisO
 // mistakes, each with its fix, and kUnknownOrientationsAdvice, in place of the symptoms they
 // cause (a chi-square far above its band, responsivities outside their range). A passing
 // quality, or one without a setup mistake, is left as it is.
-void name_setup_mistakes(const PositionTable& table, const SetupOptions& options,
-                         Quality* quality);
+void name_setup_mistakes(const PositionTable& table, const SetupOptions& options, Quality* quality);
 
 }  // namespace core
 }  // namespace accel_intrinsics

@@ -1,5 +1,5 @@
-// The discrepancy analysis of a hand tumble (docs/design.md section 11, issue 22 item 4): which sensor
-// effects the rests show without known orientations, and how much of the gap each closes.
+// The discrepancy analysis of a hand tumble (docs/design.md section 11, issue 22 item 4): which
+// sensor effects the rests show without known orientations, and how much of the gap each closes.
 //
 // Model: each rest mean m_i = outputs_for_force(S, O, effects; g f_i) (model.h, the one model of
 // every fit and the simulator) with f_i an unknown unit vector per rest (a nuisance parameter on
@@ -24,11 +24,11 @@
 #include <string>
 #include <vector>
 
+#include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/model/effects.h"
-#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/noise/noise.h"
-#include "accel_intrinsics/core/dwells/position_table.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -44,8 +44,8 @@ struct TumbleAnalysisOptions {
 };
 
 struct TumbleEffectTest {
-  Effect effect;          // value: fitted with the model of the step plus this term
-  double std = 0.0;       // its standard uncertainty there
+  Effect effect;     // value: fitted with the model of the step plus this term
+  double std = 0.0;  // its standard uncertainty there
   double delta_chi2 = 0.0;
   double statistic = 0.0;  // delta chi2, divided by the reduced chi-square when above 1
   double p_raw = 1.0;
@@ -53,8 +53,8 @@ struct TumbleEffectTest {
 };
 
 struct TumbleAnalysis {
-  FitResult before;  // no effect terms (the nuisance-direction form)
-  FitResult after;   // with the named effects (FitResult::effects, effects_std)
+  FitResult before;                     // no effect terms (the nuisance-direction form)
+  FitResult after;                      // with the named effects (FitResult::effects, effects_std)
   std::vector<TumbleEffectTest> named;  // in the order named, tests of their step
   std::vector<std::vector<TumbleEffectTest>> steps;  // every candidate of every step
   std::vector<std::string> not_screened;
@@ -70,7 +70,8 @@ FitResult fit_tumble_with_effects(const PositionTable& table, const std::vector<
                                   const NoiseModel& noise_model = NoiseModel());
 
 // Throws FitError when even the base fit fails (too few rests, ...).
-TumbleAnalysis analyze_tumble(const PositionTable& table, const TumbleAnalysisOptions& options = {});
+TumbleAnalysis analyze_tumble(const PositionTable& table,
+                              const TumbleAnalysisOptions& options = {});
 
 }  // namespace core
 }  // namespace accel_intrinsics

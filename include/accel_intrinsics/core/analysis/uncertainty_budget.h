@@ -46,9 +46,9 @@
 #include <string>
 #include <vector>
 
+#include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/model/model.h"
-#include "accel_intrinsics/core/dwells/position_table.h"
 
 namespace accel_intrinsics {
 namespace core {

@@ -1,5 +1,5 @@
-// Joins IMU samples to dwells by header stamp (docs/design.md section 2). One implementation for the
-// calibration node and offline_fit, so online and offline agree to the last digit.
+// Joins IMU samples to dwells by header stamp (docs/design.md section 2). One implementation for
+// the calibration node and offline_fit, so online and offline agree to the last digit.
 //
 // Commands and samples may arrive out of stamp order (separate topics, transport delays, bag
 // receive order). Events wait in a reorder buffer of `reorder_window_s` and are processed in
@@ -53,7 +53,7 @@ inline ChannelSample channel_sample(const TemperatureSample& reading) {
 }
 
 struct AssemblerOptions {
-  double settle_discard_s = 0.0;  // samples in the first part of each dwell are dropped
+  double settle_discard_s = 0.0;   // samples in the first part of each dwell are dropped
   double reorder_window_s = 0.25;  // how late (in stamp time) a message may arrive
 };
 
@@ -65,8 +65,8 @@ struct AssemblerCounters {
   std::uint64_t dropped_non_finite = 0;
   // The stamp of an earlier sample with other values (a device clock that went back).
   std::uint64_t dropped_backwards = 0;
-  std::uint64_t duplicates = 0;  // the same stamp and values again (a duplicated message)
-  std::uint64_t dropped_late = 0;       // arrived after the reorder window had passed its stamp
+  std::uint64_t duplicates = 0;    // the same stamp and values again (a duplicated message)
+  std::uint64_t dropped_late = 0;  // arrived after the reorder window had passed its stamp
   // Channel readings (core::kChannels, by channel_index) averaged into a dwell, and those dropped
   // (outside every dwell, in the settle discard, late, or not finite).
   PerChannel<std::uint64_t> channel_used{};

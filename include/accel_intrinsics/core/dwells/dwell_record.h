@@ -73,8 +73,12 @@ inline constexpr ChannelSpec kChannels[] = {
 };
 inline constexpr std::size_t kChannelCount = std::size(kChannels);
 
-inline constexpr std::size_t channel_index(Channel c) { return static_cast<std::size_t>(c); }
-inline const ChannelSpec& channel_spec(Channel c) { return kChannels[channel_index(c)]; }
+inline constexpr std::size_t channel_index(Channel c) {
+  return static_cast<std::size_t>(c);
+}
+inline const ChannelSpec& channel_spec(Channel c) {
+  return kChannels[channel_index(c)];
+}
 // kChannels is indexed by the enum: each row stands at its id's place.
 constexpr bool channels_in_enum_order() {
   for (std::size_t i = 0; i < kChannelCount; ++i)

@@ -86,7 +86,7 @@ class DetectedDwellSource : public DwellSource {
   void command(GimbalState state, double stamp_s, std::uint32_t step, CompletedRows* rows);
 
   RestDetector detector_;
-  std::deque<ImuSample> held_;  // samples since the last released rest
+  std::deque<ImuSample> held_;               // samples since the last released rest
   std::deque<ChannelSample> held_readings_;  // channel readings, likewise
   std::uint64_t commands_ignored_ = 0;
 };

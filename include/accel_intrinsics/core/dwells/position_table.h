@@ -56,7 +56,7 @@ class PositionTableError : public std::runtime_error {
 
 // The CSV header line, exactly as in the contract, and its extension for known orientations.
 extern const char* const kPositionTableHeader;
-extern const char* const kDirectionColumns;    // ",f_x,f_y,f_z"
+extern const char* const kDirectionColumns;  // ",f_x,f_y,f_z"
 
 // The optional columns of a table: f_x,f_y,f_z, then one column per channel (kChannels order).
 struct TableColumns {
@@ -121,16 +121,17 @@ SupersededRows find_remeasured_rows(const PositionTable& table);
 // The table without the rows `rows` (indices, ascending).
 PositionTable without_rows(PositionTable table, const std::vector<std::size_t>& rows);
 
-// T_ref of the temperature terms (docs/design.md section 10): the mean of the dwell temperatures over
-// the rows that have one; NaN when none has.
+// T_ref of the temperature terms (docs/design.md section 10): the mean of the dwell temperatures
+// over the rows that have one; NaN when none has.
 double reference_temperature_c(const PositionTable& table);
 // Rows with a temperature (DwellRecord::has_temperature).
 std::size_t rows_with_temperature(const PositionTable& table);
 
 // The model's per-dwell inputs of one row (mid-dwell time relative to t0, angle, phase, approach,
 // temperature relative to `reference_temperature_c` when the row has one).
-DwellGeometry dwell_inputs(const DwellRecord& row, double time_origin_s, int approach,
-                           double reference_temperature_c = std::numeric_limits<double>::quiet_NaN());
+DwellGeometry dwell_inputs(
+    const DwellRecord& row, double time_origin_s, int approach,
+    double reference_temperature_c = std::numeric_limits<double>::quiet_NaN());
 
 // The model's per-dwell inputs of each row (dwell_inputs), the approach from ApproachTracker.
 std::vector<DwellGeometry> dwell_geometries(const PositionTable& table);

@@ -128,7 +128,7 @@ class RestDetector {
   bool quiet_fixed_ = false;
   Eigen::Vector3d quiet_std_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d resolution_ = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
-  std::vector<double> block_std_history_[3];  // stream mode: for the quiet quantile
+  std::vector<double> block_std_history_[3];                 // stream mode: for the quiet quantile
   std::vector<std::pair<double, Eigen::Vector3d>> startup_;  // samples before the rate is known
   std::uint64_t samples_ = 0;
   double last_t_s_ = -std::numeric_limits<double>::infinity();
@@ -160,9 +160,9 @@ Eigen::Vector3d quiet_std_of(const std::vector<ImuSample>& samples, std::uint64_
 // an exact repeat (same stamp and values) kept once, a second sample at a stamp with other values
 // dropped (a device clock that went back). Returns what it removed.
 struct StreamCleanup {
-  std::uint64_t reordered = 0;   // samples that arrived before an earlier-stamped one
-  std::uint64_t duplicates = 0;  // exact repeats removed
-  std::uint64_t conflicting = 0; // same stamp, other values: dropped
+  std::uint64_t reordered = 0;    // samples that arrived before an earlier-stamped one
+  std::uint64_t duplicates = 0;   // exact repeats removed
+  std::uint64_t conflicting = 0;  // same stamp, other values: dropped
 };
 StreamCleanup put_in_time_order(std::vector<ImuSample>* samples);
 

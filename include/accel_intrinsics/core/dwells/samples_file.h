@@ -1,7 +1,7 @@
-// Raw sample files (docs/design.md section 11, offline_fit --samples): one sample a line, four columns
-// t,x,y,z (seconds, then the three raw outputs in any unit), separated by commas or whitespace.
-// A first line that is not four numbers is a header; lines starting with '#' and blank lines are
-// skipped. Other tools' four-column text files (imu_tk's, for one) read as they are.
+// Raw sample files (docs/design.md section 11, offline_fit --samples): one sample a line, four
+// columns t,x,y,z (seconds, then the three raw outputs in any unit), separated by commas or
+// whitespace. A first line that is not four numbers is a header; lines starting with '#' and blank
+// lines are skipped. Other tools' four-column text files (imu_tk's, for one) read as they are.
 #pragma once
 
 #include <iosfwd>

@@ -2,7 +2,7 @@
 //   joint (default): one vector and one offset per accelerometer from all 9N dwell means,
 //                    weighted by the dwell standard errors; closed-form linear least squares,
 //                    or Ceres when effect terms are added.
-//   eq4:             the seed as written: per accelerometer and phase R = s_a g sin a +
+//   eq4:             eq. (4) as written: per accelerometer and phase R = s_a g sin a +
 //                    s_b g cos a + O_up; each vector component is estimated twice and the two
 //                    combined by inverse-variance weight; O_u = mean of O_up (seed eq. 5).
 #pragma once
@@ -13,17 +13,17 @@
 #include <string>
 #include <vector>
 
+#include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/model/effects.h"
 #include "accel_intrinsics/core/model/intrinsics.h"
 #include "accel_intrinsics/core/noise/noise.h"
-#include "accel_intrinsics/core/dwells/position_table.h"
 
 namespace accel_intrinsics {
 namespace core {
 
-// Tumble: rests of unknown orientation (hand tumble, docs/design.md section 11), |P (mean - O)| = g;
-// chosen by the input (tumble.h), never by --model.
+// Tumble: rests of unknown orientation (hand tumble, docs/design.md section 11), |P (mean - O)| =
+// g; chosen by the input (tumble.h), never by --model.
 enum class FitModel { Joint, Eq4, Tumble };
 const char* model_name(FitModel model);
 // "joint" or "eq4"; throws std::invalid_argument otherwise.
@@ -36,8 +36,8 @@ struct FitOptions {
   // starting guess; the fitted values come back in FitResult::effects.
   std::vector<Effect> effects;
   int min_positions_per_phase = 3;
-  // The noise of the dwell means (docs/design.md section 12). White (default): weights 1 / se^2 with
-  // se = std / sqrt(n), as always. With a slow part (estimated from the run's long rest,
+  // The noise of the dwell means (docs/design.md section 12). White (default): weights 1 / se^2
+  // with se = std / sqrt(n), as always. With a slow part (estimated from the run's long rest,
   // noise.h), the joint fit (a tumble's too) is generalized least squares with the covariance
   // the model implies between the dwell means (fit.cpp says why); eq4 inflates each dwell's
   // variance by its slow part instead.
@@ -73,10 +73,10 @@ struct FitResult {
   std::vector<Effect> effects;
   std::vector<double> effects_std;
 
-  double chi2 = 0.0;           // sum of squared normalized residuals
-  int dof = 0;                 // residuals minus parameters
-  double reduced_chi2 = 0.0;   // chi2 / dof
-  double residual_rms = 0.0;   // RMS of the unnormalized residuals, m/s^2
+  double chi2 = 0.0;          // sum of squared normalized residuals
+  int dof = 0;                // residuals minus parameters
+  double reduced_chi2 = 0.0;  // chi2 / dof
+  double residual_rms = 0.0;  // RMS of the unnormalized residuals, m/s^2
   std::array<int, 3> positions{{0, 0, 0}};
 
   // Per row of the table: measured minus model (m/s^2), and the standard error used as weight.

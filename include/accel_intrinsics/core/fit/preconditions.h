@@ -25,8 +25,7 @@ struct TemperatureCoverage {
   bool screenable = false;
   std::string reason;  // empty when screenable
 };
-TemperatureCoverage temperature_coverage(const PositionTable& table,
-                                         double min_temperature_span_k);
+TemperatureCoverage temperature_coverage(const PositionTable& table, double min_temperature_span_k);
 
 // What a run offers toward the catalog's preconditions.
 struct RunConditions {

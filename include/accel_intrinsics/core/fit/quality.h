@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/fit/fit.h"
 
 namespace accel_intrinsics {
 namespace core {

@@ -11,8 +11,8 @@
 // (se the standard error of the rest mean, a_hat the unit specific force: first-order
 // propagation of the mean's noise into |a|). Covariance (J^T W J)^-1, scaled by the reduced
 // chi-square when above 1, as every fit here (fit.h).
-// With a noise model that has a slow part (docs/design.md section 12) the rests' means err together,
-// and the fit is generalized least squares across rests: r^T C^-1 r with
+// With a noise model that has a slow part (docs/design.md section 12) the rests' means err
+// together, and the fit is generalized least squares across rests: r^T C^-1 r with
 //   C_ij = sum_s c_is c_js Cov(m_is, m_js),  c_i = P^T a_hat_i
 // (the same first-order propagation, Cov the white variances plus the slow covariance between
 // the rests, noise.h dwell_correlation); the residuals and the Jacobian are whitened by the
@@ -24,9 +24,9 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/model/constants.h"
-#include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/model/constants.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -96,16 +96,17 @@ struct RelativeUncertainty {
 };
 std::vector<RelativeUncertainty> relative_uncertainties(const FitResult& fit);
 
-// The pose to try next (docs/design.md section 11): the up direction (unit, sensor frame) after whose
-// rest the largest relative uncertainty of the nine intrinsics would be smallest, from the Fisher
-// information of the rests so far plus one more rest there (its noise the median of the rests').
+// The pose to try next (docs/design.md section 11): the up direction (unit, sensor frame) after
+// whose rest the largest relative uncertainty of the nine intrinsics would be smallest, from the
+// Fisher information of the rests so far plus one more rest there (its noise the median of the
+// rests').
 struct PoseSuggestion {
   Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
-  std::string target;                // the parameter with the largest relative uncertainty
-  double relative_std_now = 0.0;     // of the target
-  double relative_std_after = 0.0;   // of the target, predicted with one more rest at `up`
-  double largest_after = 0.0;        // the largest relative uncertainty then, predicted
-  std::string words;                 // for the person holding the device (describe_pose)
+  std::string target;               // the parameter with the largest relative uncertainty
+  double relative_std_now = 0.0;    // of the target
+  double relative_std_after = 0.0;  // of the target, predicted with one more rest at `up`
+  double largest_after = 0.0;       // the largest relative uncertainty then, predicted
+  std::string words;                // for the person holding the device (describe_pose)
 };
 PoseSuggestion suggest_next_pose(const FitResult& fit, const PositionTable& table,
                                  int candidates = 600);

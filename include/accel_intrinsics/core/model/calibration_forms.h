@@ -1,6 +1,6 @@
 // The fitted calibration R = S a + O (docs/design.md section 1) rewritten in the forms other tools
-// hold (docs/design.md section 7). Pure linear algebra, shared by the exporters (io/exporters.h) and
-// their tests; every form maps raw outputs R to the specific force, in the DUT frame or in a
+// hold (docs/design.md section 7). Pure linear algebra, shared by the exporters (io/exporters.h)
+// and their tests; every form maps raw outputs R to the specific force, in the DUT frame or in a
 // rotated frame Q a that the form states.
 #pragma once
 

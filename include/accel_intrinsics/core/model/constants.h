@@ -8,8 +8,12 @@ namespace core {
 constexpr double kStandardGravity = 9.80665;
 constexpr double kPi = 3.14159265358979323846;
 
-inline double deg_to_rad(double deg) { return deg * kPi / 180.0; }
-inline double rad_to_deg(double rad) { return rad * 180.0 / kPi; }
+inline double deg_to_rad(double deg) {
+  return deg * kPi / 180.0;
+}
+inline double rad_to_deg(double rad) {
+  return rad * 180.0 / kPi;
+}
 
 // Normal gravity of the WGS 84 ellipsoid (Somigliana closed formula) at geodetic latitude
 // `latitude_deg`, reduced to `height_m` above the ellipsoid with the second-order free-air

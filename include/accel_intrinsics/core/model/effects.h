@@ -1,5 +1,5 @@
-// The vocabulary of physical effects (docs/design.md section 3). An effect is a named term of the one
-// rig model (model.h): switched on in the simulator, added to a fit, screened by the analysis.
+// The vocabulary of physical effects (docs/design.md section 3). An effect is a named term of the
+// one rig model (model.h): switched on in the simulator, added to a fit, screened by the analysis.
 #pragma once
 
 #include <string>
@@ -9,14 +9,14 @@ namespace accel_intrinsics {
 namespace core {
 
 enum class EffectKind {
-  QuadraticNonlinearity,  // R_s += K2 L_s^2 / |s|          target u|v|w, 1/(m/s^2)
-  CubicNonlinearity,      // R_s += K3 L_s^3 / |s|^2        target u|v|w, 1/(m/s^2)^2
-  AngleOffset,            // true angle = alpha + delta      target x|y|z, rad
-  AngleScale,             // true angle = alpha (1 + eps)    target x|y|z, 1
-  AxisTilt,               // rotation axis raised by tau     target x|y|z, rad
-  OffsetDrift,            // R_s += d (t - t0)               target u|v|w, (m/s^2)/s
-  TimingLag,              // IMU stamps late by lag          target all,   s
-  Backlash,               // angle error +-b/2 by approach   target x|y|z, rad
+  QuadraticNonlinearity,         // R_s += K2 L_s^2 / |s|          target u|v|w, 1/(m/s^2)
+  CubicNonlinearity,             // R_s += K3 L_s^3 / |s|^2        target u|v|w, 1/(m/s^2)^2
+  AngleOffset,                   // true angle = alpha + delta      target x|y|z, rad
+  AngleScale,                    // true angle = alpha (1 + eps)    target x|y|z, 1
+  AxisTilt,                      // rotation axis raised by tau     target x|y|z, rad
+  OffsetDrift,                   // R_s += d (t - t0)               target u|v|w, (m/s^2)/s
+  TimingLag,                     // IMU stamps late by lag          target all,   s
+  Backlash,                      // angle error +-b/2 by approach   target x|y|z, rad
   OffsetTemperatureCoefficient,  // R_s += c (T - T_ref)     target u|v|w, (m/s^2)/K
   ScaleTemperatureCoefficient,   // R_s += c (T - T_ref) L_s target u|v|w, 1/K
 };
@@ -89,8 +89,8 @@ std::vector<int> effect_targets(EffectKind kind);
 // first, then an effect's experiment for any other partner, then the generic advice).
 std::string separating_experiment(const Effect& a, const Effect& b);
 
-// Noise-model entries of the vocabulary (docs/design.md section 12): names the discrepancy analysis may
-// give a gap that NO physical term explains. They are not effect terms (no Effect, never
+// Noise-model entries of the vocabulary (docs/design.md section 12): names the discrepancy analysis
+// may give a gap that NO physical term explains. They are not effect terms (no Effect, never
 // simulated as a term nor fitted as one; make_effect refuses them with a pointer here).
 //   correlated_noise: the dwell means' noise is not white (a slow bias: Gauss-Markov, random
 //   walk); named when the residuals exceed the white prediction, the run's noise model (from its

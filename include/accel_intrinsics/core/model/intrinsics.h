@@ -18,16 +18,16 @@ struct Intrinsics {
 };
 
 // From the vectors (rows of S) and the 9x9 covariance of S in row-major order.
-Intrinsics intrinsics_from_vectors(const Eigen::Matrix3d& S,
-                                   const Eigen::Matrix<double, 9, 9>& covariance_S =
-                                       Eigen::Matrix<double, 9, 9>::Zero());
+Intrinsics intrinsics_from_vectors(
+    const Eigen::Matrix3d& S,
+    const Eigen::Matrix<double, 9, 9>& covariance_S = Eigen::Matrix<double, 9, 9>::Zero());
 
 // From an independently measured cross-sensitivity matrix P (a = P (R - O)): S = P^-1,
 // G = S S^T, |u| = sqrt(G_uu), cos theta_uv = G_uv / sqrt(G_uu G_vv). The covariance of P
 // (row-major) is optional. Throws std::invalid_argument when P is singular.
-Intrinsics intrinsics_from_cross_sensitivity(const Eigen::Matrix3d& P,
-                                             const Eigen::Matrix<double, 9, 9>& covariance_P =
-                                                 Eigen::Matrix<double, 9, 9>::Zero());
+Intrinsics intrinsics_from_cross_sensitivity(
+    const Eigen::Matrix3d& P,
+    const Eigen::Matrix<double, 9, 9>& covariance_P = Eigen::Matrix<double, 9, 9>::Zero());
 
 // Jacobian d(intrinsics)/d(S row-major), 6x9.
 Eigen::Matrix<double, 6, 9> intrinsics_jacobian(const Eigen::Matrix3d& S);

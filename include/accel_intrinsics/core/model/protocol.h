@@ -16,7 +16,9 @@ enum class Phase : std::uint8_t { X = 0, Y = 1, Z = 2 };
 constexpr int kNumPhases = 3;
 constexpr Phase kPhases[kNumPhases] = {Phase::X, Phase::Y, Phase::Z};
 
-inline int index(Phase p) { return static_cast<int>(p); }
+inline int index(Phase p) {
+  return static_cast<int>(p);
+}
 // "x", "y", "z".
 const char* phase_name(Phase p);
 // Accepts "x"/"y"/"z" (and upper case); returns false otherwise.
@@ -37,7 +39,8 @@ Eigen::Matrix<T, 3, 1> in_plane_direction(Phase p, const T& alpha) {
   switch (p) {
     case Phase::X: return Eigen::Matrix<T, 3, 1>(zero, s, c);
     case Phase::Y: return Eigen::Matrix<T, 3, 1>(s, zero, c);
-    case Phase::Z: default: return Eigen::Matrix<T, 3, 1>(s, c, zero);
+    case Phase::Z:
+    default: return Eigen::Matrix<T, 3, 1>(s, c, zero);
   }
 }
 
@@ -58,11 +61,11 @@ inline bool step_in_protocol(std::uint32_t step, std::uint32_t steps) {
 // Timing and shape of a protocol run. All times in seconds.
 struct ProtocolOptions {
   std::uint32_t steps_per_phase = 24;  // N
-  double move_s = 1.0;                  // time the gimbal takes to move one step
-  double settle_s = 0.5;                // wait after the move before SETTLED
-  double dwell_s = 2.0;                 // SETTLED to next MOVING
-  double phase_change_s = 5.0;          // remount / reorient between phases (within MOVING)
-  bool two_way = false;                 // sweep up then back down (reveals backlash)
+  double move_s = 1.0;                 // time the gimbal takes to move one step
+  double settle_s = 0.5;               // wait after the move before SETTLED
+  double dwell_s = 2.0;                // SETTLED to next MOVING
+  double phase_change_s = 5.0;         // remount / reorient between phases (within MOVING)
+  bool two_way = false;                // sweep up then back down (reveals backlash)
   // After the up-sweep of each phase, visit step N at 2 pi: the 0 deg orientation again, one turn
   // and most of the phase's time later, approached from below (+1). There a drift has changed the
   // outputs by d * dt, an angle offset reads as at 0 deg and an angle-scale error has grown to

@@ -27,7 +27,7 @@ namespace core {
 // (weights n - 1), the sample rate from the dwells' counts and durations (sum n / sum (t_end -
 // t_start)).
 struct DwellNoise {
-  Eigen::Vector3d density = Eigen::Vector3d::Zero();      // (m/s^2)/sqrt(Hz): sample_std / sqrt(rate)
+  Eigen::Vector3d density = Eigen::Vector3d::Zero();  // (m/s^2)/sqrt(Hz): sample_std / sqrt(rate)
   Eigen::Vector3d density_std = Eigen::Vector3d::Zero();  // its standard uncertainty
   Eigen::Vector3d sample_std = Eigen::Vector3d::Zero();   // pooled per-sample std, m/s^2
   double rate_hz = 0.0;
@@ -52,8 +52,8 @@ struct AllanCurve {
   double rate_hz = 0.0;
 };
 // Throws std::invalid_argument for fewer than 16 samples or a rate that is not positive.
-AllanCurve overlapping_allan_deviation(const std::vector<Eigen::Vector3d>& samples,
-                                       double rate_hz, int points_per_decade = 10);
+AllanCurve overlapping_allan_deviation(const std::vector<Eigen::Vector3d>& samples, double rate_hz,
+                                       int points_per_decade = 10);
 // The same for one series (the benchmark and the curve of one axis).
 std::vector<double> overlapping_allan_deviation(const std::vector<double>& x, double rate_hz,
                                                 const std::vector<std::size_t>& cluster_sizes,
@@ -96,7 +96,8 @@ struct StaticRecordNoise {
 StaticRecordNoise analyze_static_record(const std::vector<double>& stamps_s,
                                         const std::vector<Eigen::Vector3d>& outputs);
 
-// ---- Noise that is not white (docs/design.md section 12) -----------------------------------------
+// ---- Noise that is not white (docs/design.md section 12)
+// -----------------------------------------
 //
 // The noise of one output as a sum of independent parts: a white noise of per-sample standard
 // deviation white_std, a first-order Gauss-Markov bias (stationary, variance gm_sigma^2,
@@ -106,9 +107,9 @@ StaticRecordNoise analyze_static_record(const std::vector<double>& stamps_s,
 // together; slow_covariance() gives their covariance exactly (closed forms of the double
 // integral over the two dwells).
 struct AxisNoiseModel {
-  double white_std = 0.0;  // per-sample standard deviation, m/s^2
-  double gm_sigma = 0.0;   // m/s^2
-  double gm_tau_s = 0.0;   // s
+  double white_std = 0.0;   // per-sample standard deviation, m/s^2
+  double gm_sigma = 0.0;    // m/s^2
+  double gm_tau_s = 0.0;    // s
   double rw_density = 0.0;  // (m/s^2)/sqrt(s)
   // How well the slow part's scale is known: the relative variance of the factor that multiplies
   // gm_sigma^2 and rw_density^2 together, as the fit that estimated it found it
@@ -168,9 +169,9 @@ NoiseModel estimate_noise_model(const std::vector<Eigen::Vector3d>& samples, dou
 // curve.rate_hz the record's): what the streamed long rest gives (rest_accumulator.h).
 NoiseModel estimate_noise_model(const AllanCurve& curve);
 
-// The long rest of a run (docs/design.md section 12), as a time span: on a gimbal run the first dwell
-// (phase x, step 0) when it lasts at least `initial_rest_s` (> 0); in any recorded run a dwell at
-// least 10 times the median dwell length (the first such); nothing otherwise.
+// The long rest of a run (docs/design.md section 12), as a time span: on a gimbal run the first
+// dwell (phase x, step 0) when it lasts at least `initial_rest_s` (> 0); in any recorded run a
+// dwell at least 10 times the median dwell length (the first such); nothing otherwise.
 struct LongRest {
   std::size_t row = 0;  // index in the table
   double t_start_s = 0.0;

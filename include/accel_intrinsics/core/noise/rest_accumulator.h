@@ -50,9 +50,9 @@ class StreamingAllan {
   using Sums = std::array<long double, 3>;
   struct Cluster {
     std::size_t m = 0, stride = 1;
-    std::size_t phase = 0;              // current index mod stride
-    std::size_t m_mod = 0, m2_mod = 0;  // m mod stride, 2 m mod stride
-    std::vector<Sums> pending;          // terms under way, a ring by term number
+    std::size_t phase = 0;                           // current index mod stride
+    std::size_t m_mod = 0, m2_mod = 0;               // m mod stride, 2 m mod stride
+    std::vector<Sums> pending;                       // terms under way, a ring by term number
     std::size_t started = 0, halfway = 0, done = 0;  // term counters
     Sums sum{};                                      // of the squared second differences
   };
@@ -62,7 +62,7 @@ class StreamingAllan {
   std::size_t n_ = 0;
   Eigen::Vector3d offset_ = Eigen::Vector3d::Zero();  // the first sample
   Sums theta_{};                                      // sum of (x - offset) so far
-  static constexpr std::size_t kHistory = 64;         // last cumulative sums (clusters with stride 1)
+  static constexpr std::size_t kHistory = 64;  // last cumulative sums (clusters with stride 1)
   std::array<Sums, kHistory> history_{};
   std::vector<Cluster> clusters_;
   int next_grid_i_ = 0;  // next i of round(10^(i / 10)) to open

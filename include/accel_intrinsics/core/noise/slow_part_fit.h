@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/noise/noise.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/noise/noise.h"
 
 namespace accel_intrinsics {
 namespace core {

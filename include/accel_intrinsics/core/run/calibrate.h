@@ -8,15 +8,15 @@
 #include <vector>
 
 #include "accel_intrinsics/core/analysis/discrepancy.h"
-#include "accel_intrinsics/core/fit/fit.h"
-#include "accel_intrinsics/core/noise/noise.h"
-#include "accel_intrinsics/core/dwells/position_table.h"
-#include "accel_intrinsics/core/model/protocol.h"
-#include "accel_intrinsics/core/fit/quality.h"
 #include "accel_intrinsics/core/analysis/raw_stream_analysis.h"
-#include "accel_intrinsics/core/fit/tumble.h"
 #include "accel_intrinsics/core/analysis/tumble_analysis.h"
 #include "accel_intrinsics/core/analysis/uncertainty_budget.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/fit/quality.h"
+#include "accel_intrinsics/core/fit/tumble.h"
+#include "accel_intrinsics/core/model/protocol.h"
+#include "accel_intrinsics/core/noise/noise.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -38,7 +38,8 @@ struct CalibrateOptions {
   // counts, V, ...: responsivities are then in that unit per m/s^2, and the quality gate checks
   // their spread only.
   std::string output_unit = "m/s^2";
-  // Type-B budget of the certificate (uncertainty_budget.h, docs/design.md section 9); none: type A only.
+  // Type-B budget of the certificate (uncertainty_budget.h, docs/design.md section 9); none: type A
+  // only.
   std::optional<BudgetSpec> budget;
 };
 
@@ -89,11 +90,11 @@ struct CalibrationReport {
   std::optional<TumbleAnalysis> tumble_analysis;
 };
 
-// Fit -> analysis -> timing lag -> quality gate. Throws FitError when the fit fails (the message says what is
-// missing; fit() may also throw std::invalid_argument for bad options). A failing analysis or
-// lag estimate does not throw: it leaves analysis_error and the base fit as the certificate.
-// `raw` may be null (a position table alone: no timing lag). With options.budget, the budget of
-// the certificate is computed last (its refit failing throws FitError, an invalid spec
+// Fit -> analysis -> timing lag -> quality gate. Throws FitError when the fit fails (the message
+// says what is missing; fit() may also throw std::invalid_argument for bad options). A failing
+// analysis or lag estimate does not throw: it leaves analysis_error and the base fit as the
+// certificate. `raw` may be null (a position table alone: no timing lag). With options.budget, the
+// budget of the certificate is computed last (its refit failing throws FitError, an invalid spec
 // std::invalid_argument).
 CalibrationReport calibrate(const PositionTable& table, const RawStreams* raw,
                             const CalibrateOptions& options);

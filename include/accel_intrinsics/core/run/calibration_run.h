@@ -16,10 +16,11 @@
 //
 // What it owns: the dwell assembler (samples -> dwells, docs/design.md section 2), fed through the
 // commanded dwell source, the position table of accepted rows, the statistics of the run's first
-// dwell accumulated as it comes (its long rest, for the noise model: docs/design.md section 12), the watchdogs (no samples
-// during a dwell, too few samples, a dwell with none), retries of a faulty position (rewind the
-// controller; rows measured before its new MOVING are discarded: "blackouts"), resume after a
-// restart (from a checkpoint, or of the gimbal controller), and the decision when to fit.
+// dwell accumulated as it comes (its long rest, for the noise model: docs/design.md section 12),
+// the watchdogs (no samples during a dwell, too few samples, a dwell with none), retries of a
+// faulty position (rewind the controller; rows measured before its new MOVING are discarded:
+// "blackouts"), resume after a restart (from a checkpoint, or of the gimbal controller), and the
+// decision when to fit.
 //
 // Time: every stamp and `now_s` is in seconds of the stand's clock (ROS time; simulated time
 // under /clock). Thread safety: none; the shell serializes calls.
@@ -35,12 +36,12 @@
 #include <vector>
 
 #include "accel_intrinsics/core/analysis/clock_check.h"
+#include "accel_intrinsics/core/analysis/raw_stream_analysis.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/dwells/dwell_source.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/noise/noise.h"
 #include "accel_intrinsics/core/noise/rest_accumulator.h"
-#include "accel_intrinsics/core/dwells/position_table.h"
-#include "accel_intrinsics/core/analysis/raw_stream_analysis.h"
 #include "accel_intrinsics/core/run/run_actions.h"
 #include "accel_intrinsics/core/run/run_transitions.h"
 
@@ -110,8 +111,8 @@ class CalibrationRun {
   // An IMU sample (any stamp order within the reorder window).
   RunActions on_sample(const ImuSample& sample);
   // A reading of a per-dwell channel (core::kChannels: the DUT temperature on imu/temperature,
-  // docs/design.md section 10; optional; on the IMU's clock like the samples): each dwell records the
-  // aggregate of its readings.
+  // docs/design.md section 10; optional; on the IMU's clock like the samples): each dwell records
+  // the aggregate of its readings.
   RunActions on_channel_sample(const ChannelSample& reading);
   // The gimbal controller's state on its progress topic ("IDLE", "MOVING", "SETTLED", "DONE",
   // "ABORTED", "REMOUNT", ...); `message` carries "ABORTED: <reason>". A controller that aborts
@@ -169,9 +170,9 @@ class CalibrationRun {
   const MoveSampleRecorder& recorded_moves() const { return moves_; }
   // The noise model of the run's long rest (docs/design.md section 12), by the rule offline_fit
   // applies to a recorded run (core::noise_model_of_run: the first dwell of at least 10 times the
-  // median dwell), from the first dwell's samples accumulated as they came (rest_accumulator.h). None (white) when the
-  // run has no long rest, or its samples are not here (a run restored from a checkpoint), or they
-  // are too few for a model (`why` then says so).
+  // median dwell), from the first dwell's samples accumulated as they came (rest_accumulator.h).
+  // None (white) when the run has no long rest, or its samples are not here (a run restored from a
+  // checkpoint), or they are too few for a model (`why` then says so).
   std::optional<NoiseModel> noise_model(std::string* why = nullptr) const;
   const LongRestRecorder& long_rest() const { return long_rest_; }
   // The direction of approach the next row at (phase, step) would have.

@@ -118,11 +118,11 @@ enum class ProtocolState { Idle, Starting, Moving, Dwelling, Remount, Done, Abor
 const char* protocol_state_name(ProtocolState state);
 
 struct GimbalProtocolOptions {
-  ProtocolOptions protocol;       // the schedule: steps, move, settle, dwell, two_way, ...
-  bool autostart = false;         // start at the first tick without a start call
-  double start_delay_s = 1.0;     // from start (or autostart) to the first MOVING, s
-  double settle_timeout_s = 60.0; // abort when a move has not settled in this time, s
-  double progress_hz = 1.0;       // periodic Progress (logged) at most this often, Hz
+  ProtocolOptions protocol;        // the schedule: steps, move, settle, dwell, two_way, ...
+  bool autostart = false;          // start at the first tick without a start call
+  double start_delay_s = 1.0;      // from start (or autostart) to the first MOVING, s
+  double settle_timeout_s = 60.0;  // abort when a move has not settled in this time, s
+  double progress_hz = 1.0;        // periodic Progress (logged) at most this often, Hz
   // The continue call as the operator knows it, named in the remount messages.
   std::string continue_service = "gimbal_controller/continue";
 
@@ -134,14 +134,14 @@ struct GimbalProtocolOptions {
 struct ProtocolStatus {
   enum class Level { Ok, Warn, Error };
   ProtocolState state = ProtocolState::Idle;
-  bool running = false;          // Moving, Dwelling or Remount: position is meaningful
-  ScheduledPosition position;    // the position being visited (the last one when not running)
+  bool running = false;             // Moving, Dwelling or Remount: position is meaningful
+  ScheduledPosition position;       // the position being visited (the last one when not running)
   std::size_t position_number = 0;  // 1-based; all of them once done; 0 when not running
   std::size_t positions = 0;
-  double fraction = 0.0;         // of the run's nominal time
+  double fraction = 0.0;  // of the run's nominal time
   double time_left_s = 0.0;
   double in_state_s = 0.0;
-  bool slow_to_settle = false;   // moving for more than half of settle_timeout_s
+  bool slow_to_settle = false;  // moving for more than half of settle_timeout_s
   std::uint64_t resumes = 0;
   std::string last_error;
   // WAIT_OPERATOR: what the operator is asked, why again (the pose check), the target's stage
@@ -224,11 +224,11 @@ class GimbalProtocol {
   ProtocolState state_ = ProtocolState::Idle;
   std::size_t index_ = 0;
   double state_since_s_ = std::numeric_limits<double>::quiet_NaN();  // latest state change
-  double start_at_s_ = 0.0;        // first MOVING of a run that is starting
-  double last_progress_s_ = 0.0;   // last Progress
+  double start_at_s_ = 0.0;       // first MOVING of a run that is starting
+  double last_progress_s_ = 0.0;  // last Progress
   std::string last_error_;
   bool autostart_pending_ = false;
-  std::size_t start_index_ = 0;    // where the next start begins
+  std::size_t start_index_ = 0;  // where the next start begins
   std::uint64_t resumes_ = 0;
   std::uint64_t operator_waits_ = 0;
   bool faulted_ = false;  // the gimbal raised a GimbalFault: recover() before moving again

@@ -1,8 +1,9 @@
 // A live hand tumble (docs/design.md section 11, the calibration node's mode: tumble): samples in,
 // rests found as they end (the detected dwell source: RestDetector feeding the dwell assembler,
-// core/dwell_source.h), and after each rest the progress a person turning the device needs: the rests so far, the coverage, the current relative uncertainties and the next
-// pose to try; the fit when asked or when every relative uncertainty is below a target.
-// ROS-free; the node (ros/tumble_calibration_node.h) is a shell around it.
+// core/dwell_source.h), and after each rest the progress a person turning the device needs: the
+// rests so far, the coverage, the current relative uncertainties and the next pose to try; the fit
+// when asked or when every relative uncertainty is below a target. ROS-free; the node
+// (ros/tumble_calibration_node.h) is a shell around it.
 #pragma once
 
 #include <Eigen/Core>
@@ -13,13 +14,13 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/core/dwells/dwell_source.h"
-#include "accel_intrinsics/core/noise/noise.h"
-#include "accel_intrinsics/core/noise/rest_accumulator.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/dwells/rest_detection.h"
 #include "accel_intrinsics/core/fit/tumble.h"
+#include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/noise/rest_accumulator.h"
+#include "accel_intrinsics/core/run/calibrate.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -40,8 +41,8 @@ struct TumbleProgress {
   std::size_t rests = 0;
   std::size_t rejected = 0;
   std::uint64_t samples = 0;
-  double still_s = 0.0;  // how long the device has been still now
-  bool fitted = false;   // enough rests, and they determine the intrinsics
+  double still_s = 0.0;   // how long the device has been still now
+  bool fitted = false;    // enough rests, and they determine the intrinsics
   std::string fit_error;  // why not, when rests >= min_rests but the fit failed
   std::optional<TumbleCoverage> coverage;
   std::vector<RelativeUncertainty> relative;
@@ -75,7 +76,8 @@ class TumbleSession {
   std::uint64_t dropped_out_of_order() const { return dropped_; }
   // The noise model of the first rest when it is the session's long rest (at least 30 s:
   // core::find_long_rest, as offline_fit finds it in a recorded tumble), from its samples
-  // accumulated as they came (rest_accumulator.h); none (white) otherwise. A person starts with the long rest.
+  // accumulated as they came (rest_accumulator.h); none (white) otherwise. A person starts with the
+  // long rest.
   std::optional<NoiseModel> noise_model() const;
 
   // The whole pipeline on the rests so far (core::calibrate), weighted with noise_model();

@@ -9,13 +9,13 @@
 #include <string>
 #include <vector>
 
-#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/model/gimbal_kinematics.h"
 #include "accel_intrinsics/core/model/model.h"
-#include "accel_intrinsics/core/noise/noise.h"
-#include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/model/protocol.h"
+#include "accel_intrinsics/core/noise/noise.h"
 
 namespace accel_intrinsics {
 namespace core {
@@ -94,8 +94,7 @@ class SlowBiasProcess {
                        const std::string& prefix, const std::array<std::string, 3>& names);
   // `white` with this bias's slow part on every axis: what an estimate from a long rest should
   // find (the simulators' true_noise_model).
-  static NoiseModel add_to(NoiseModel white, double gm_sigma, double gm_tau_s,
-                           double random_walk);
+  static NoiseModel add_to(NoiseModel white, double gm_sigma, double gm_tau_s, double random_walk);
 
  private:
   double gm_sigma_, gm_tau_s_, random_walk_;
@@ -105,7 +104,6 @@ class SlowBiasProcess {
   Eigen::Vector3d gm_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d rw_ = Eigen::Vector3d::Zero();
 };
-
 
 // Raw samples of the first dwell, for the noise model (simulate_position_table fills it when
 // asked): stamps in seconds since the first gimbal command and the outputs.
@@ -149,7 +147,6 @@ Recording simulate_recording(const SimulationOptions& options);
 // Feeds a recording to an assembler in stamp order (a command before a sample at equal stamps),
 // as a recorded run would arrive, then flushes it.
 void feed_in_stamp_order(const Recording& recording, DwellAssembler* assembler);
-
 
 }  // namespace core
 }  // namespace accel_intrinsics

@@ -10,8 +10,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
+#include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/model/model.h"
 #include "accel_intrinsics/core/noise/noise.h"
 
