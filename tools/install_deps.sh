@@ -11,7 +11,7 @@ PACKAGES=(
   nlohmann-json3-dev libcli11-dev libbenchmark-dev libgtest-dev googletest
   python3-rospy python3-rosgraph python3-matplotlib python3-numpy python3-yaml catkin-lint graphviz
   libnodeletlib-dev libnodeletlib-tools pluginlib-dev
-  poppler-utils mkdocs
+  poppler-utils mkdocs clang-format
   python3-sqlalchemy python3-alembic python3-psycopg2 python3-pytest postgresql
   python3-tornado chromium chromium-driver python3-selenium
 )
