@@ -26,8 +26,10 @@ NODE_SOURCES = {
     "calibration": ["src/ros/calibration_options.cpp", "src/ros/tumble_calibration_node.cpp",
                     "src/nodes/calibration.cpp", "src/nodelets/calibration_nodelet.cpp"],
     "gimbal_controller": ["src/ros/gimbal_controller_options.cpp",
+                          "src/drivers/gimbal_driver_table.cpp", "src/ros/ros_driver_params.cpp",
                           "src/ros/gimbal_controller_node.cpp", "src/nodes/gimbal_controller.cpp"],
-    "accelerometer": ["src/ros/accelerometer_node.cpp", "src/nodes/accelerometer.cpp"],
+    "accelerometer": ["src/ros/accelerometer_node.cpp", "src/ros/accelerometer_serial_lines.cpp",
+                      "src/nodes/accelerometer.cpp"],
     "apply_calibration": ["src/ros/apply_calibration_node.cpp", "src/nodes/apply_calibration.cpp",
                           "src/nodelets/apply_calibration_nodelet.cpp"],
     "sim_clock": ["src/ros/sim_clock.cpp", "src/nodes/sim_clock.cpp"],
@@ -35,6 +37,8 @@ NODE_SOURCES = {
 # Python nodes: their private parameters are the literal `rospy.get_param("~name"` calls.
 PY_NODE_SOURCES = {"dashboard": ["scripts/dashboard"]}
 _PY_PARAM = re.compile(r"rospy\.get_param\(\s*\"~([\w/]+)\"")
+# Files that read through drivers::DriverParams (driver_params_in_source).
+DRIVER_TABLE_SOURCES = ["src/drivers/gimbal_driver_table.cpp"]
 # Files with readers only (no parameter of their own), searched but owned by no node.
 HELPER_SOURCES = ["src/ros/params.cpp"]
 # Where parameters may be read.
@@ -105,6 +109,58 @@ def reads_in_source(text, readers=None):
     return found
 
 
+# The gimbal driver table reads its rows' parameters through drivers::DriverParams
+# (params.get / keys / get_effects) with keys joined from literals and a few variables; each
+# variable becomes the placeholder nodes.md writes (an unknown one: not a parameter name).
+_DRIVER_KEY = re.compile(r"\bparams\.(?:get|get_effects|keys)\(\s*([^,)]+?)\s*[,)]"
+                         r"|\bread_number_or_string\(\s*params\s*,\s*([^,)]+?)\s*,")
+_DRIVER_VAR = re.compile(r"const std::string (\w+) = ([^;]+);")
+_AXIS_MAP_CALL = re.compile(r"\bread_axis_map\(\s*params\s*,\s*\"(\w+)\"\s*\)")
+DRIVER_PLACEHOLDERS = {"driver": "<driver>", "axis": "<A>", '"xyz"[p]': "<p>"}
+
+
+def _driver_key(expr, variables):
+    """The parameter name of a `+`-joined key expression, or None when a part is unknown."""
+    out = ""
+    for part in (p.strip() for p in expr.split("+")):
+        if part in DRIVER_PLACEHOLDERS:
+            out += DRIVER_PLACEHOLDERS[part]
+        elif part.startswith('"') and part.endswith('"'):
+            out += part[1:-1]
+        elif part in variables:
+            out += variables[part]
+        else:
+            return None
+    return out
+
+
+def driver_params_in_source(text):
+    """[(name, line)] of the driver table's DriverParams reads: a map's entries (`.../hold/<x>`)
+    count as the map; an axis map read for a named driver is its one `<driver>/phases/{x,y,z}`."""
+    text = _strip_comments(text)
+    found = []
+    variables = {}
+    events = sorted([(m.start(), "var", m) for m in _DRIVER_VAR.finditer(text)] +
+                    [(m.start(), "key", m) for m in _DRIVER_KEY.finditer(text)] +
+                    [(m.start(), "map", m) for m in _AXIS_MAP_CALL.finditer(text)],
+                    key=lambda e: e[0])
+    for pos, kind, m in events:
+        line = text.count("\n", 0, pos) + 1
+        if kind == "var":
+            value = _driver_key(m.group(2), variables)
+            if value is not None:
+                variables[m.group(1)] = value
+        elif kind == "map":
+            found.append((m.group(1) + "/phases/{x,y,z}", line))
+        else:
+            name = _driver_key(m.group(1) or m.group(2), variables)
+            if name is None:
+                continue
+            name = re.sub(r"/hold/.*$", "/hold", name)
+            found.append((name, line))
+    return found
+
+
 def source_files(package=PACKAGE):
     out = []
     for d in SOURCE_DIRS:
@@ -125,6 +181,8 @@ def parameters_read(package=PACKAGE, extra_sources=None):
     nodes, problems = {n: {} for n in NODE_SOURCES}, []
     for path, text in sorted(texts.items()):
         found = reads_in_source(text, readers)
+        if path in DRIVER_TABLE_SOURCES:
+            found += driver_params_in_source(text)
         if not found or path in HELPER_SOURCES:
             continue
         if path not in owner:
