@@ -141,8 +141,8 @@ inline void supervise_and_check(const std::vector<std::string>& namespaces, cons
   std::printf("%s\n", r.output.c_str());
 }
 
-// Waits for the stand's services, then starts clean: calibration/reset (no checkpoint of an
-// earlier test run) and gimbal_controller/start.
+// Waits for the stand's services, then starts a new run: calibration/reset (the next run gets a
+// directory of its own; earlier runs are kept) and gimbal_controller/start.
 inline void reset_and_start() {
   ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
   ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(60.0)));

@@ -76,6 +76,8 @@ TEST(StandPromises, ResumeParamsStartTheRunThereAndResetKeepsTheRun) {
   ros::Subscriber c = nh.subscribe("/gimbal/command", 1000, on_command);
   ros::Subscriber st =
       nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status_value);
+  // A reset keeps earlier runs: an earlier invocation's run must not pass for this one's.
+  std::filesystem::remove_all(output_dir + "/unnamed");
   stand_checks::reset_and_start();
   if (HasFatalFailure()) return;
   const std::string table = run_dirs::latest(output_dir) + "/position_table.csv";
