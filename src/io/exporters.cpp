@@ -31,15 +31,8 @@ constexpr FormatInfo kFormats[] = {
     {ExportFormat::Ardupilot, "ardupilot", "ardupilot.param"},
 };
 
-// Shortest text that reads back to the same double.
 std::string num(double v) {
-  v += 0.0;  // no "-0"
-  char buf[40];
-  for (int precision = 15; precision <= 17; ++precision) {
-    std::snprintf(buf, sizeof(buf), "%.*g", precision, v);
-    if (std::strtod(buf, nullptr) == v) break;
-  }
-  return buf;
+  return detail::round_trip_text(v);
 }
 
 std::string short_num(double v, int precision = 4) {

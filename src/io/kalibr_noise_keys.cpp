@@ -8,10 +8,8 @@
 namespace accel_intrinsics {
 namespace io {
 namespace detail {
-namespace {
 
-// Shortest text that reads back to the same double.
-std::string round_trip(double v) {
+std::string round_trip_text(double v) {
   v += 0.0;  // no "-0"
   char buf[40];
   for (int precision = 15; precision <= 17; ++precision) {
@@ -20,6 +18,8 @@ std::string round_trip(double v) {
   }
   return buf;
 }
+
+namespace {
 
 double largest_finite(const Eigen::Vector3d& v) {
   double m = std::numeric_limits<double>::quiet_NaN();
@@ -36,7 +36,7 @@ KalibrNoiseKeys kalibr_noise_keys(const Eigen::Vector3d& density, const Eigen::V
   KalibrNoiseKeys out;
   auto key = [&](const char* name, double value) {
     if (std::isfinite(value))
-      out.lines += indent + name + ": " + round_trip(value) + "\n";
+      out.lines += indent + name + ": " + round_trip_text(value) + "\n";
     else
       out.missing.push_back(name);
   };

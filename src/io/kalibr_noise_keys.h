@@ -11,6 +11,9 @@ namespace accel_intrinsics {
 namespace io {
 namespace detail {
 
+// Shortest text that reads back to the same double (no "-0").
+std::string round_trip_text(double v);
+
 struct KalibrNoiseKeys {
   // "update_rate", "accelerometer_noise_density", "accelerometer_random_walk", one line each,
   // each prefixed by the indent; a key without a finite value is left out.
