@@ -161,7 +161,9 @@ class DashboardInBrowser(unittest.TestCase):
                                 % sorted(seen_counts))
 
         # Done: points = rows of the position table = dwell messages.
-        with open(os.path.join(self.output_dir, self.done_ns, "position_table.csv")) as f:
+        # The node's files of its newest run (output_dir/<device>/latest/, docs/results.md).
+        run_dir = os.path.join(self.output_dir, self.done_ns, "unnamed", "latest")
+        with open(os.path.join(run_dir, "position_table.csv")) as f:
             rows = [r for r in csv.reader(l for l in f if not l.startswith("#"))][1:]
         info = self.card_info(self.done_ns)
         self.assertEqual(info["count"], len(rows))
@@ -172,7 +174,7 @@ class DashboardInBrowser(unittest.TestCase):
         self.assertEqual(drawn, [len(rows)] * 3)
 
         # The result table against the node's result file, to the printed digits.
-        with open(os.path.join(self.output_dir, self.done_ns, "intrinsics.yaml")) as f:
+        with open(os.path.join(run_dir, "intrinsics.yaml")) as f:
             doc = yaml.safe_load(f)
         cells = self.js("return [...document.querySelectorAll('section.card[data-ns=\"/%s\"] "
                         "td[data-key]')].map(td => [td.dataset.key, td.textContent])"
