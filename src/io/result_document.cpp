@@ -114,6 +114,14 @@ bool reads_as_non_string(const std::string& s) {
                            ".inf", "-.inf", "+.inf"}) {
     if (lower == word) return true;
   }
+  // YAML 1.1 readers (PyYAML's safe_load among them) turn "2026-11-27..." into a date.
+  const auto digits = [&s](std::size_t from, std::size_t n) {
+    for (std::size_t i = from; i < from + n; ++i) {
+      if (i >= s.size() || !std::isdigit(static_cast<unsigned char>(s[i]))) return false;
+    }
+    return true;
+  };
+  if (digits(0, 4) && s.size() > 4 && s[4] == '-' && digits(5, 1)) return true;
   char* end = nullptr;
   std::strtod(s.c_str(), &end);
   return end != s.c_str() && *end == '\0';

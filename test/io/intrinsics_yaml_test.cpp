@@ -43,6 +43,11 @@ TEST(IntrinsicsYaml, CarriesUnitsTimeSerialTopicDriverAndGSource) {
   EXPECT_EQ(y["local_gravity_source"].as<std::string>(), "parameter local_gravity");
   const std::string t = y["time_utc"].as<std::string>();
   EXPECT_TRUE(std::regex_match(t, std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)"))) << t;
+  // Quoted: a YAML 1.1 reader (PyYAML's safe_load, the archive's) would read a bare ISO time as
+  // a date, which JSON cannot hold.
+  EXPECT_NE(io::result_yaml_text(report("m/s^2"), node_context())
+                .find("time_utc: \"2026-11-27T14:15:02Z\""),
+            std::string::npos);
   EXPECT_EQ(y["output_unit"].as<std::string>(), "m/s^2");
   const YAML::Node units = y["units"];
   ASSERT_TRUE(units.IsMap());
