@@ -244,11 +244,95 @@ function renderArchive(view) {
       }
       table.append(tr);
     }
-    section.append(table);
+    const rows = (view.histories[d.serial] || []).filter((r) => r.rig === d.rig);
+    const plots = el("div", "plots history-plots");
+    for (const [key, label] of PARAMS.slice(0, 3)) {
+      plots.append(smallPlot(label + " over time", (c) => drawTimeSeries(c, rows.map((r) => ({
+        t: Date.parse(r.time), y: r.values[key], lo: r.values[key] - r.expanded[key],
+        hi: r.values[key] + r.expanded[key] }))), "history"));
+    }
+    section.append(plots, table);
     parts.push(section);
   }
   if (!view.error && !view.devices.length) parts.push(el("p", "", "no records yet"));
+  for (const rig of Object.keys(view.charts || {}).sort()) parts.push(renderChart(rig, view.charts[rig]));
   box.replaceChildren(...parts);
+}
+
+// A labelled canvas; draw(canvas) fills it.
+function smallPlot(label, draw, cls) {
+  const box = el("div", "plot");
+  const c = document.createElement("canvas");
+  c.width = 240; c.height = 110; c.className = cls;
+  box.append(el("span", "", label), c);
+  draw(c);
+  return box;
+}
+
+// Points {t (ms), y, lo, hi, flagged} against time, with optional limit bands {lo, hi} per point.
+function drawTimeSeries(c, pts, limits) {
+  const g = c.getContext("2d");
+  g.clearRect(0, 0, c.width, c.height);
+  c.dataset.points = String(pts.length);
+  if (!pts.length) return;
+  const ts = pts.map((p) => p.t);
+  const ys = pts.flatMap((p) => [p.lo, p.hi, p.y]).concat((limits || []).flatMap((l) => l ? [l.lo, l.hi] : []));
+  let t0 = Math.min(...ts), t1 = Math.max(...ts);
+  if (t1 - t0 < 1) { t0 -= 1000; t1 += 1000; }
+  let lo = Math.min(...ys), hi = Math.max(...ys);
+  if (!(hi - lo > 1e-12)) { lo -= 1e-6; hi += 1e-6; }
+  const pad = 0.08 * (hi - lo); lo -= pad; hi += pad;
+  const X = (t) => 8 + (c.width - 16) * (t - t0) / (t1 - t0);
+  const Y = (y) => c.height - 4 - (c.height - 8) * (y - lo) / (hi - lo);
+  if (limits) {
+    for (const [k, color] of [[2, "#f59e0b"], [3, "#dc2626"]]) {
+      for (const side of [1, -1]) {
+        g.strokeStyle = color; g.setLineDash([4, 3]); g.beginPath();
+        pts.forEach((p, i) => {
+          const y = Y(side * k * limits[i].U);
+          if (i === 0) g.moveTo(X(p.t), y); else g.lineTo(X(p.t), y);
+        });
+        g.stroke();
+      }
+    }
+    g.setLineDash([]);
+    g.strokeStyle = "#9ca3af"; g.beginPath(); g.moveTo(0, Y(0)); g.lineTo(c.width, Y(0)); g.stroke();
+  }
+  let flagged = 0;
+  for (const p of pts) {
+    g.strokeStyle = "#6b7280"; g.beginPath(); g.moveTo(X(p.t), Y(p.lo)); g.lineTo(X(p.t), Y(p.hi)); g.stroke();
+    g.fillStyle = p.flagged ? "#dc2626" : "#2563eb";
+    g.beginPath(); g.arc(X(p.t), Y(p.y), p.flagged ? 4 : 2.5, 0, 2 * Math.PI); g.fill();
+    if (p.flagged) ++flagged;
+  }
+  c.dataset.flagged = String(flagged);
+  g.fillStyle = "#374151"; g.font = "10px sans-serif";
+  g.fillText(hi.toExponential(2), 4, 10); g.fillText(lo.toExponential(2), 4, c.height - 4);
+}
+
+// A rig's control chart: its check standard's deviations from the reference with the 2U and 3U
+// limits (U: each record's expanded uncertainty); points a run rule flagged in red.
+function renderChart(rig, chart) {
+  const section = el("div", "control-chart");
+  section.dataset.rig = rig;
+  section.append(el("h3", "rig", "control chart of rig " + rig));
+  section.append(el("div", "line", "check standard " + chart.serial + " \u00b7 " + chart.points.length +
+    " records \u00b7 dashed: 2U (amber), 3U (red)"));
+  const plots = el("div", "plots");
+  for (const [key, label] of PARAMS.slice(0, 6)) {
+    const flaggedAt = new Set(chart.flags.filter((f) => f.parameter === key).map((f) => f.index));
+    const pts = chart.points.map((p, i) => ({
+      t: Date.parse(p.time), y: p.deviation[key], lo: p.deviation[key] - p.expanded[key],
+      hi: p.deviation[key] + p.expanded[key], flagged: flaggedAt.has(i) }));
+    plots.append(smallPlot("deviation of " + label, (c) => drawTimeSeries(c, pts,
+      chart.points.map((p) => ({ U: p.expanded[key], lo: -3 * p.expanded[key], hi: 3 * p.expanded[key] }))),
+      "chart"));
+  }
+  section.append(plots);
+  const flags = el("ul", "faults");
+  for (const f of chart.flags) flags.append(el("li", "", f.time + " " + f.parameter + ": " + f.rule));
+  if (chart.flags.length) section.append(flags);
+  return section;
 }
 
 // ---- Events from the server -------------------------------------------------------------------

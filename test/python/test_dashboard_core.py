@@ -134,3 +134,60 @@ def test_archive_view_does_not_migrate_an_old_archive(tmp_path):
     assert "not" in view["error"] and view["devices"] == []
     tables = sqlite3.connect(str(path)).execute("SELECT name FROM sqlite_master").fetchall()
     assert tables == []
+
+
+def test_archive_view_draws_the_control_chart_of_a_rigs_check_standard(tmp_path):
+    import accel_archive as aa
+    import accel_dashboard_archive as ada
+    url = "sqlite:///" + str(tmp_path / "archive.db")
+    engine = aa.open_archive(url)
+    serial = "CHK-<b>1</b>"
+    # Nine records of the check standard on rig1, |u| with its own standard uncertainty each
+    # (expanded U = 2 u at k = 2); the last one shifted far beyond 3U of the others' mean.
+    # (All values differ: the archive keeps an identical result once.)
+    us = [1.0100, 1.01005, 1.00995, 1.01003, 1.01002, 1.00998, 1.00997, 1.01001, 1.0130]
+    stds = [1e-4, 1.2e-4, 1e-4, 1.2e-4, 1e-4, 1.2e-4, 1e-4, 1.2e-4, 3e-4]
+    times = ["2026-04-%02dT08:00:00Z" % (i + 1) for i in range(len(us))]
+    for u, s, when in zip(us, stds, times):
+        result = archived_result(serial, u)
+        result["responsivity_std"]["u"] = s
+        aa.add(engine, *aa.make_record(result, when=aa.parse_time(when)))
+    # The same standard on another rig and another device on rig1: not on rig1's chart.
+    other = archived_result(serial, 1.05)
+    other["certificate"]["rig"] = "rig2"
+    aa.add(engine, *aa.make_record(other, when=aa.parse_time("2026-04-02T09:00:00Z")))
+    aa.add(engine, *aa.make_record(archived_result("DUT-7", 1.2),
+                                   when=aa.parse_time("2026-04-03T09:00:00Z")))
+    engine.dispose()
+
+    view = ada.ArchiveView(url, {"rig1": serial}).read()
+    assert view["error"] == ""
+    assert list(view["charts"]) == ["rig1"]
+    chart = view["charts"]["rig1"]
+    assert chart["serial"] == serial
+    assert [p["time"] for p in chart["points"]] == times
+    # The reference: the weighted mean with weights 1 / u^2 (u = U / 2), computed here.
+    weights = [1.0 / s ** 2 for s in stds]
+    reference = sum(w * u for w, u in zip(weights, us)) / sum(weights)
+    assert chart["reference"]["responsivity_u"] == pytest.approx(reference, rel=1e-12)
+    for p, u, s in zip(chart["points"], us, stds):
+        assert p["deviation"]["responsivity_u"] == pytest.approx(u - reference, abs=1e-12)
+        assert p["expanded"]["responsivity_u"] == pytest.approx(2 * s)
+        assert p["deviation"]["responsivity_v"] == pytest.approx(0.0, abs=1e-12)
+    # The last point is beyond 3U of the reference; no other point is.
+    assert [i for i, (u, s) in enumerate(zip(us, stds))
+            if abs(u - reference) > 3 * 2 * s] == [8]
+    beyond = [f for f in chart["flags"] if f["rule"] == "beyond_3U"]
+    assert [(f["index"], f["parameter"]) for f in beyond] == [(8, "responsivity_u")]
+    assert beyond[0]["time"] == times[8]
+
+
+def test_archive_view_without_check_standards_has_no_chart(tmp_path):
+    import accel_archive as aa
+    import accel_dashboard_archive as ada
+    url = "sqlite:///" + str(tmp_path / "archive.db")
+    aa.open_archive(url).dispose()
+    view = ada.ArchiveView(url).read()
+    assert view["error"] == "" and view["charts"] == {}
+    view = ada.ArchiveView(url, {"rig9": "nobody"}).read()
+    assert view["charts"]["rig9"]["points"] == [] and view["charts"]["rig9"]["flags"] == []

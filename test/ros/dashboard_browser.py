@@ -8,7 +8,8 @@ position_table.csv has rows, and its result table equals its result file (intrin
 keys of offline_fit's JSON) to the digits printed; rig2, killed (SIGKILL) mid-run, shows as lost
 within ~lost_within_s; its device serial, a piece of HTML, shows as text; the browser's console
 holds no error. rig1's serial, also HTML, shows as text in the lab archive's view once its
-calibration node archived the result. The page at the end is saved as a PNG (~screenshot).
+calibration node archived the result, and so does each rig's control chart (six canvases with
+points) of /dashboard/check_standards. The page at the end is saved as a PNG (~screenshot).
 """
 
 import csv
@@ -211,6 +212,24 @@ class DashboardInBrowser(unittest.TestCase):
                 "return [...document.querySelectorAll('#archive h3.serial')]"
                 ".map(h => h.textContent)"), 30.0)
             self.assertEqual(serials, [self.done_serial])
+            self.assertEqual(self.js("return document.querySelectorAll('img').length"), 0)
+
+        # ~check_standards: each rig's control chart, its serial shown as text.
+        standards = rospy.get_param("/dashboard/check_standards", {})
+        self.assertTrue(standards, "dashboard.test sets the dashboard's check_standards")
+        for rig, serial in sorted(standards.items()):
+            chart = self.wait_for("the control chart of rig " + rig, lambda: self.js("""
+                const c = [...document.querySelectorAll('#archive .control-chart')]
+                    .find(e => e.dataset.rig === arguments[0]);
+                if (!c) return null;
+                const canvases = [...c.querySelectorAll('canvas.chart')];
+                if (!canvases.length || canvases.some(k => Number(k.dataset.points) < 1)) return null;
+                return {title: c.querySelector('h3').textContent,
+                        line: c.querySelector('.line').textContent,
+                        canvases: canvases.length};""", rig), 30.0)
+            self.assertEqual(chart["title"], "control chart of rig " + rig)
+            self.assertTrue(chart["line"].startswith("check standard " + serial + " "))
+            self.assertEqual(chart["canvases"], 6)
             self.assertEqual(self.js("return document.querySelectorAll('img').length"), 0)
 
         if self.screenshot:
