@@ -114,7 +114,9 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
   AnalysisResult result;
   result.local_gravity = options.local_gravity;
   if (stop_analysis_on_setup_mistakes(table, options, &result)) return result;
-  const std::vector<DwellGeometry> geoms = dwell_geometries(table);
+  // The table prepared once for the many fits below (fit/prepared_table.h).
+  const PreparedTable prepared(table);
+  const std::vector<DwellGeometry>& geoms = prepared.geometries();
   const RunConditions run = run_conditions(table, geoms, options.min_temperature_span_k);
 
   // Candidate family.
@@ -161,7 +163,7 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
   // The rest's slow part, scaled up to the run's residuals when it falls short (see the header).
   fo.noise_model = slow_part_from_run(table, fo);
   result.noise_model = fo.noise_model;
-  FitResult current = fit(table, fo);
+  FitResult current = fit(prepared, fo);
   result.before_fit = current;
   result.before = compute_gap(table, current, options.harmonics, options.time_bins);
   const bool cross_validate = options.cv_folds >= 2;
@@ -224,7 +226,7 @@ AnalysisResult analyze(const PositionTable& table, const AnalysisOptions& option
       }
       o.effects.push_back(cs.effect);  // one-step estimate as the starting value
       try {
-        FitResult f = fit(table, o);
+        FitResult f = fit(prepared, o);
         if (!std::isfinite(f.chi2)) continue;
         cs.refit = true;
         ++refits;

@@ -78,9 +78,8 @@ struct EffectsProblem {
   std::vector<double*> blocks;  // S, O, values...
 };
 
-void build_effects_problem(EffectsProblem& prob, const PositionTable& table,
-                           const std::vector<Eigen::Vector3d>& se,
-                           const std::vector<DwellGeometry>& geoms, const FitOptions& options,
+void build_effects_problem(EffectsProblem& prob, const PreparedTable& table,
+                           const std::vector<Eigen::Vector3d>& se, const FitOptions& options,
                            const LinearJoint& start) {
   for (int k = 0; k < 9; ++k) prob.S[k] = start.S(k / 3, k % 3);
   for (int s = 0; s < 3; ++s) prob.O[s] = start.O(s);
@@ -89,10 +88,11 @@ void build_effects_problem(EffectsProblem& prob, const PositionTable& table,
   prob.blocks = {prob.S.data(), prob.O.data()};
   for (double& v : prob.values) prob.blocks.push_back(&v);
   auto terms = std::make_shared<const std::vector<Effect>>(options.effects);
-  for (std::size_t i = 0; i < table.rows.size(); ++i) {
-    prob.problem.AddResidualBlock(DwellMeanResidual::Create(terms, geoms[i], table.rows[i].mean,
-                                                            se[i], options.local_gravity),
-                                  nullptr, prob.blocks);
+  const std::vector<DwellGeometry>& geoms = table.geometries();
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    prob.problem.AddResidualBlock(
+        DwellMeanResidual::Create(terms, geoms[i], table.row(i).mean, se[i], options.local_gravity),
+        nullptr, prob.blocks);
   }
 }
 
@@ -205,21 +205,21 @@ void refine_gls(EffectsProblem& prob, const DwellCorrelation& corr, int num_para
 
 }  // namespace
 
-FitResult fit_joint_effects(const PositionTable& table, const std::vector<Eigen::Vector3d>& se,
-                            bool unit_weights, const std::vector<DwellGeometry>& geoms,
-                            const FitOptions& options,
-                            const std::shared_ptr<const DwellCorrelation>& corr) {
+FitResult fit_joint_effects(const PreparedTable& table, const FitWeights& weights,
+                            const FitOptions& options) {
+  const std::vector<Eigen::Vector3d>& se = weights.se;
+  const std::shared_ptr<const DwellCorrelation>& corr = weights.corr;
   std::string label = "joint";
   for (const Effect& e : options.effects) label += "+" + e.label();
   const std::size_t k = options.effects.size();
   const int num_params = kNumLinear + static_cast<int>(k);
-  if (3 * static_cast<int>(table.rows.size()) <= num_params)
+  if (3 * static_cast<int>(table.size()) <= num_params)
     throw FitError(label + " has " + std::to_string(num_params) + " parameters but only " +
-                   std::to_string(3 * table.rows.size()) + " dwell means");
+                   std::to_string(3 * table.size()) + " dwell means");
 
   const LinearJoint start = solve_joint_linear(table, se, options.local_gravity);
   EffectsProblem prob;
-  build_effects_problem(prob, table, se, geoms, options, start);
+  build_effects_problem(prob, table, se, options, start);
   const ceres::Solver::Summary summary = solve_effects_problem(prob);
 
   FitResult r;
@@ -254,12 +254,12 @@ FitResult fit_joint_effects(const PositionTable& table, const std::vector<Eigen:
 
   // Residuals as measured minus model: the normalized Ceres residual times -se.
   fill_residuals(r, table, se, num_params, [&](std::size_t i) -> Eigen::Vector3d {
-    return table.rows[i].mean +
+    return table.row(i).mean +
            Eigen::Vector3d(normalized(3 * i), normalized(3 * i + 1), normalized(3 * i + 2))
                .cwiseProduct(se[i]);
   });
   apply_correlation(r, corr);
-  const Eigen::MatrixXd cov = cov_unscaled * chi2_scale(r, unit_weights);
+  const Eigen::MatrixXd cov = cov_unscaled * chi2_scale(r, weights.unit_weights);
   finish_result(r, cov.topLeftCorner<kNumLinear, kNumLinear>());
   r.effects_std.resize(k);
   for (std::size_t i = 0; i < k; ++i)

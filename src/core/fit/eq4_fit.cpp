@@ -33,8 +33,9 @@ std::array<int, 2> phase_components(Phase p) {
 // Per accelerometer, theta = (a, b, O) of phases x, y, z (9 values, block-diagonal covariance
 // Sigma), and (s_x, s_y, s_z, O_s) = M theta with a 4x9 weight matrix M, so cov = M Sigma M^T
 // carries the within-phase correlation of a, b and O exactly.
-FitResult fit_eq4(const PositionTable& table, const std::vector<Eigen::Vector3d>& se,
-                  bool unit_weights, const FitOptions& options) {
+FitResult fit_eq4(const PreparedTable& table, const FitWeights& weights,
+                  const FitOptions& options) {
+  const std::vector<Eigen::Vector3d>& se = weights.se;
   const double g = options.local_gravity;
   std::array<std::array<Eigen::Matrix3d, 3>, 3> N;  // [accelerometer][phase]
   std::array<std::array<Eigen::Vector3d, 3>, 3> b;
@@ -42,15 +43,16 @@ FitResult fit_eq4(const PositionTable& table, const std::vector<Eigen::Vector3d>
     for (auto& m : a) m.setZero();
   for (auto& a : b)
     for (auto& v : a) v.setZero();
-  auto design_row = [g](const DwellRecord& row) {
-    const Eigen::Vector3d f = in_plane_direction(row.phase, row.angle_rad) * g;
-    const std::array<int, 2> c = phase_components(row.phase);
+  // Every row is a gimbal dwell (fit() checked): its direction is in_plane_direction(phase, angle).
+  auto design_row = [g, &table](std::size_t i) {
+    const Eigen::Vector3d f = table.direction(i) * g;
+    const std::array<int, 2> c = phase_components(table.row(i).phase);
     return Eigen::Vector3d(f(c[0]), f(c[1]), 1.0);
   };
-  for (std::size_t i = 0; i < table.rows.size(); ++i) {
-    const DwellRecord& row = table.rows[i];
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    const DwellRecord& row = table.row(i);
     const int p = index(row.phase);
-    const Eigen::Vector3d h = design_row(row);
+    const Eigen::Vector3d h = design_row(i);
     const Eigen::Matrix3d hh = h * h.transpose();
     for (int s = 0; s < 3; ++s) {
       const double w = 1.0 / (se[i](s) * se[i](s));
@@ -77,13 +79,12 @@ FitResult fit_eq4(const PositionTable& table, const std::vector<Eigen::Vector3d>
   r.model = FitModel::Eq4;
   r.local_gravity = g;
   fill_residuals(r, table, se, 27, [&](std::size_t i) -> Eigen::Vector3d {
-    const DwellRecord& row = table.rows[i];
-    const Eigen::Vector3d h = design_row(row);
+    const Eigen::Vector3d h = design_row(i);
     Eigen::Vector3d m;
-    for (int s = 0; s < 3; ++s) m(s) = h.dot(theta[s][index(row.phase)]);
+    for (int s = 0; s < 3; ++s) m(s) = h.dot(theta[s][index(table.row(i).phase)]);
     return m;
   });
-  const double scale = chi2_scale(r, unit_weights);
+  const double scale = chi2_scale(r, weights.unit_weights);
 
   Eigen::Matrix<double, 12, 12> cov = Eigen::Matrix<double, 12, 12>::Zero();
   for (int s = 0; s < 3; ++s) {

@@ -69,11 +69,7 @@ std::string FitResult::model_label() const {
   return label;
 }
 
-namespace {
-
-// dwell_standard_errors, also telling whether any accelerometer fell back to unit weights
-// (no row with a usable std: noise-free or std-less data).
-std::vector<Eigen::Vector3d> standard_errors(const PositionTable& table, bool* unit_weights) {
+std::vector<Eigen::Vector3d> dwell_standard_errors(const PositionTable& table, bool* unit_weights) {
   const std::size_t rows = table.rows.size();
   std::vector<Eigen::Vector3d> se(rows, Eigen::Vector3d::Zero());
   if (unit_weights) *unit_weights = false;
@@ -106,23 +102,51 @@ std::vector<Eigen::Vector3d> standard_errors(const PositionTable& table, bool* u
   return se;
 }
 
-}  // namespace
-
 std::vector<Eigen::Vector3d> dwell_standard_errors(const PositionTable& table) {
-  return standard_errors(table, nullptr);
+  return dwell_standard_errors(table, nullptr);
 }
 
+namespace {
+
+// The weights of one fit: noise that is not white makes the joint fits generalized least
+// squares and inflates eq4's variances (see the top).
+FitWeights fit_weights(const PreparedTable& table, const FitOptions& options) {
+  FitWeights w;
+  w.se = table.standard_errors();
+  w.unit_weights = table.unit_weights();
+  if (options.noise_model.white() || w.unit_weights) return w;
+  if (options.model == FitModel::Eq4) {
+    for (std::size_t i = 0; i < w.se.size(); ++i) {
+      const DwellRecord& row = table.row(i);
+      for (int s = 0; s < 3; ++s)
+        w.se[i](s) =
+            std::sqrt(w.se[i](s) * w.se[i](s) + options.noise_model.slow_covariance(
+                                                    s, row.t_start_s, row.t_end_s, row.t_start_s,
+                                                    row.t_end_s, row.t_start_s));
+    }
+  } else {
+    w.corr = dwell_correlation(table.table(), w.se, options.noise_model);
+  }
+  return w;
+}
+
+}  // namespace
+
 FitResult fit(const PositionTable& table, const FitOptions& options) {
+  return fit(PreparedTable(table), options);
+}
+
+FitResult fit(const PreparedTable& table, const FitOptions& options) {
   validate_options(options);
   if (!options.effects.empty() && options.model != FitModel::Joint) {
     validate_effects(options.effects, options.model, {});
   }
   validate_rows(table);
   // Rests of unknown orientation (a hand tumble): only |P (mean - O)| = g can take them.
-  const std::size_t unknown = rows_with_unknown_orientation(table);
+  const std::size_t unknown = table.rows_with_unknown_orientation();
   if (unknown > 0) {
-    if (unknown != table.rows.size())
-      throw FitError(std::to_string(unknown) + " of " + std::to_string(table.rows.size()) +
+    if (unknown != table.size())
+      throw FitError(std::to_string(unknown) + " of " + std::to_string(table.size()) +
                      " rows have an unknown orientation (phase '-' without f_x,f_y,f_z): a table "
                      "is either a tumble (all unknown) or known orientations, not both");
     if (options.model == FitModel::Eq4)
@@ -138,8 +162,8 @@ FitResult fit(const PositionTable& table, const FitOptions& options) {
     return fit_tumble(table, tumble);
   }
   if (options.model == FitModel::Eq4) {
-    for (std::size_t i = 0; i < table.rows.size(); ++i) {
-      if (table.rows[i].has_direction)
+    for (std::size_t i = 0; i < table.size() && table.rows_with_direction() > 0; ++i) {
+      if (table.row(i).has_direction)
         throw FitError("row " + std::to_string(i + 1) +
                        " gives its orientation as f_x,f_y,f_z: eq4 fits a sinusoid per gimbal "
                        "phase and needs the three phases; use the joint model");
@@ -148,39 +172,18 @@ FitResult fit(const PositionTable& table, const FitOptions& options) {
   } else {
     validate_joint_geometry(table, options.min_positions_per_phase);
   }
-  bool unit_weights = false;
-  std::vector<Eigen::Vector3d> se = standard_errors(table, &unit_weights);
-  // Noise that is not white: GLS for the joint fits, inflated variances for eq4 (see the top).
-  std::shared_ptr<const DwellCorrelation> corr;
-  if (!options.noise_model.white() && !unit_weights) {
-    if (options.model == FitModel::Eq4) {
-      for (std::size_t i = 0; i < se.size(); ++i) {
-        const DwellRecord& row = table.rows[i];
-        for (int s = 0; s < 3; ++s)
-          se[i](s) =
-              std::sqrt(se[i](s) * se[i](s) + options.noise_model.slow_covariance(
-                                                  s, row.t_start_s, row.t_end_s, row.t_start_s,
-                                                  row.t_end_s, row.t_start_s));
-      }
-    } else {
-      corr = dwell_correlation(table, se, options.noise_model);
-    }
-  }
+  const FitWeights weights = fit_weights(table, options);
   FitResult r;
   if (options.model == FitModel::Eq4) {
-    r = fit_eq4(table, se, unit_weights, options);
+    r = fit_eq4(table, weights, options);
   } else if (options.effects.empty()) {
-    r = fit_joint_linear(table, se, unit_weights, options, corr);
+    r = fit_joint_linear(table, weights, options);
   } else {
-    const std::vector<DwellGeometry> geoms = dwell_geometries(table);
-    if (geoms.size() != table.rows.size())
-      throw FitError("dwell_geometries returned " + std::to_string(geoms.size()) + " entries for " +
-                     std::to_string(table.rows.size()) + " rows");
-    validate_effects(options.effects, options.model, geoms);
-    r = fit_joint_effects(table, se, unit_weights, geoms, options, corr);
+    validate_effects(options.effects, options.model, table.geometries());
+    r = fit_joint_effects(table, weights, options);
   }
-  r.noise_model = unit_weights ? NoiseModel() : options.noise_model;
-  r.positions = positions_per_phase(table);
+  r.noise_model = weights.unit_weights ? NoiseModel() : options.noise_model;
+  r.positions = table.positions_per_phase();
   return r;
 }
 

@@ -1,6 +1,7 @@
 // Helpers shared by the fits of src/core/fit (not installed): the linear joint solve the
 // effects fit starts from, the validators, the result's finishing steps. The conventions shared
-// by all fits are at the top of fit.cpp.
+// by all fits are at the top of fit.cpp. Validators and solvers read the table through the
+// PreparedTable fit() builds once (prepared_table.h), and the weights through FitWeights.
 #pragma once
 
 #include <Eigen/Core>
@@ -11,12 +12,17 @@
 #include <vector>
 
 #include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/fit/prepared_table.h"
 #include "accel_intrinsics/core/noise/noise.h"
 
 namespace accel_intrinsics {
 namespace core {
 
 constexpr int kNumLinear = 12;  // S (9, row-major) and O (3)
+
+// fit.cpp: dwell_standard_errors (fit.h), also telling whether some accelerometer fell back to
+// unit weights (no row with a usable std: noise-free or std-less data).
+std::vector<Eigen::Vector3d> dwell_standard_errors(const PositionTable& table, bool* unit_weights);
 
 // fit_common.cpp
 std::string format_number(double x);
@@ -30,18 +36,27 @@ Eigen::MatrixXd checked_inverse(const Eigen::MatrixXd& N, const std::vector<std:
 double chi2_scale(const FitResult& r, bool unit_weights);
 void apply_correlation(FitResult& r, const std::shared_ptr<const DwellCorrelation>& corr);
 
+// The weights of one fit (fit.cpp fit_weights): the prepared standard errors, for eq4 inflated by
+// the slow part of a noise model that is not white, and for the joint fits under such a model the
+// dwell means' correlation (generalized least squares; null when white or unit weights).
+struct FitWeights {
+  std::vector<Eigen::Vector3d> se;
+  bool unit_weights = false;
+  std::shared_ptr<const DwellCorrelation> corr;
+};
+
 // Residuals, chi2, dof, rms. `model_of_row(i)` returns the model outputs of row i.
 template <typename ModelOfRow>
-void fill_residuals(FitResult& r, const PositionTable& table,
+void fill_residuals(FitResult& r, const PreparedTable& table,
                     const std::vector<Eigen::Vector3d>& se, int num_parameters,
                     ModelOfRow&& model_of_row) {
-  const std::size_t rows = table.rows.size();
+  const std::size_t rows = table.size();
   r.residuals.resize(rows);
   r.standard_errors = se;
   r.chi2 = 0.0;
   double sum_sq = 0.0;
   for (std::size_t i = 0; i < rows; ++i) {
-    r.residuals[i] = table.rows[i].mean - model_of_row(i);
+    r.residuals[i] = table.row(i).mean - model_of_row(i);
     r.chi2 += r.residuals[i].cwiseQuotient(se[i]).squaredNorm();
     sum_sq += r.residuals[i].squaredNorm();
   }
@@ -55,9 +70,9 @@ void fill_residuals(FitResult& r, const PositionTable& table,
 
 // fit_validation.cpp
 void validate_options(const FitOptions& options);
-void validate_rows(const PositionTable& table);
-void validate_geometry(const PositionTable& table, int min_positions);
-void validate_joint_geometry(const PositionTable& table, int min_positions);
+void validate_rows(const PreparedTable& table);
+void validate_geometry(const PreparedTable& table, int min_positions);
+void validate_joint_geometry(const PreparedTable& table, int min_positions);
 void validate_effects(const std::vector<Effect>& effects, FitModel model,
                       const std::vector<DwellGeometry>& geoms);
 
@@ -84,21 +99,17 @@ struct LinearJoint {
   }
 };
 
-LinearJoint solve_joint_linear(const PositionTable& table, const std::vector<Eigen::Vector3d>& se,
+LinearJoint solve_joint_linear(const PreparedTable& table, const std::vector<Eigen::Vector3d>& se,
                                double g);
-FitResult fit_joint_linear(const PositionTable& table, const std::vector<Eigen::Vector3d>& se,
-                           bool unit_weights, const FitOptions& options,
-                           const std::shared_ptr<const DwellCorrelation>& corr);
+FitResult fit_joint_linear(const PreparedTable& table, const FitWeights& weights,
+                           const FitOptions& options);
 
-// effects_fit.cpp
-FitResult fit_joint_effects(const PositionTable& table, const std::vector<Eigen::Vector3d>& se,
-                            bool unit_weights, const std::vector<DwellGeometry>& geoms,
-                            const FitOptions& options,
-                            const std::shared_ptr<const DwellCorrelation>& corr);
+// effects_fit.cpp (the dwell geometries from the prepared table)
+FitResult fit_joint_effects(const PreparedTable& table, const FitWeights& weights,
+                            const FitOptions& options);
 
 // eq4_fit.cpp
-FitResult fit_eq4(const PositionTable& table, const std::vector<Eigen::Vector3d>& se,
-                  bool unit_weights, const FitOptions& options);
+FitResult fit_eq4(const PreparedTable& table, const FitWeights& weights, const FitOptions& options);
 
 }  // namespace core
 }  // namespace accel_intrinsics

@@ -27,13 +27,13 @@ void validate_options(const FitOptions& options) {
                    "; every model needs at least 3 dwells per phase");
 }
 
-void validate_rows(const PositionTable& table) {
+void validate_rows(const PreparedTable& table) {
   static const char* const kMean[3] = {"mean_u", "mean_v", "mean_w"};
   static const char* const kStd[3] = {"std_u", "std_v", "std_w"};
-  for (std::size_t i = 0; i < table.rows.size(); ++i) {
-    const DwellRecord& r = table.rows[i];
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    const DwellRecord& r = table.row(i);
     auto fail = [&](const std::string& field, const std::string& what) {
-      throw FitError(row_name(table, i) + ": " + field + " " + what);
+      throw FitError(row_name(table.table(), i) + ": " + field + " " + what);
     };
     if (!std::isfinite(r.angle_rad)) fail("angle_rad", "is " + format_number(r.angle_rad));
     if (!std::isfinite(r.t_start_s)) fail("t_start", "is " + format_number(r.t_start_s));
@@ -50,8 +50,8 @@ void validate_rows(const PositionTable& table) {
 // Every phase needs min_positions dwells at >= 3 distinct angles: R = a g sin + b g cos + c has
 // three unknowns per phase, and (sin a, cos a, 1) of points on one circle has rank 3 exactly
 // when at least three of them are distinct.
-void validate_geometry(const PositionTable& table, int min_positions) {
-  const std::array<int, 3> counts = positions_per_phase(table);
+void validate_geometry(const PreparedTable& table, int min_positions) {
+  const std::array<int, 3>& counts = table.positions_per_phase();
   for (Phase p : kPhases) {
     const int count = counts[index(p)];
     if (count < min_positions)
@@ -61,8 +61,8 @@ void validate_geometry(const PositionTable& table, int min_positions) {
   for (Phase p : kPhases) {
     Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
     std::vector<double> angles;
-    for (const DwellRecord& r : table.rows) {
-      if (r.phase != p) continue;
+    for (std::size_t i : table.phase_rows(p)) {
+      const DwellRecord& r = table.row(i);
       const Eigen::Vector3d h(std::sin(r.angle_rad), std::cos(r.angle_rad), 1.0);
       M += h * h.transpose();
       double a = std::fmod(r.angle_rad, 2.0 * kPi);
@@ -88,14 +88,14 @@ void validate_geometry(const PositionTable& table, int min_positions) {
 // the gimbal phases present keep the per-phase checks (they are what the rows claim to be),
 // and the whole set must give (f_x, f_y, f_z, 1) full rank, well conditioned. A complete gimbal
 // run (three phases, no direction rows) is checked as before.
-void validate_joint_geometry(const PositionTable& table, int min_positions) {
-  const std::array<int, 3> counts = positions_per_phase(table);
+void validate_joint_geometry(const PreparedTable& table, int min_positions) {
+  const std::array<int, 3>& counts = table.positions_per_phase();
   const bool three_phases = counts[0] > 0 && counts[1] > 0 && counts[2] > 0;
-  if (three_phases && rows_with_direction(table) == 0) {
+  if (three_phases && table.rows_with_direction() == 0) {
     validate_geometry(table, min_positions);
     return;
   }
-  if (table.rows.empty()) throw FitError("the position table has no dwells");
+  if (table.size() == 0) throw FitError("the position table has no dwells");
   for (Phase p : kPhases) {
     const int count = counts[index(p)];
     if (count > 0 && count < min_positions)
@@ -103,13 +103,12 @@ void validate_joint_geometry(const PositionTable& table, int min_positions) {
                      " dwells, needs at least " + std::to_string(min_positions));
   }
   Eigen::Matrix4d M = Eigen::Matrix4d::Zero();
-  for (const DwellRecord& r : table.rows) {
-    const Eigen::Vector3d f = specific_force_direction(r);
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    const Eigen::Vector3d& f = table.direction(i);
     const Eigen::Vector4d h(f(0), f(1), f(2), 1.0);
     M += h * h.transpose();
   }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eig(M /
-                                                           static_cast<double>(table.rows.size()));
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eig(M / static_cast<double>(table.size()));
   const Eigen::Vector4d ev = eig.eigenvalues();
   // Conditioning: 1e-6 leaves the weakest combination determined to about 1000x the noise of the
   // others; below it the fit is dominated by round-off and by how well the orientations are known.
@@ -118,7 +117,7 @@ void validate_joint_geometry(const PositionTable& table, int min_positions) {
   c /= c.cwiseAbs().maxCoeff();
   std::ostringstream m;
   m.precision(3);
-  m << "the orientations do not determine S and O (" << table.rows.size()
+  m << "the orientations do not determine S and O (" << table.size()
     << " dwells): every one satisfies " << c(0) << " f_x + " << c(1) << " f_y + " << c(2)
     << " f_z + " << c(3)
     << " = 0 (f: unit specific force), so the same combination of the vector components and "

@@ -7,6 +7,7 @@
 #include <limits>
 #include <memory>
 #include <sstream>
+#include <utility>
 
 #include "accel_intrinsics/core/model/intrinsics.h"
 #include "accel_intrinsics/core/noise/noise.h"
@@ -127,9 +128,14 @@ bool has_usable_std(const PositionTable& table) {
 }
 
 TumbleProblem make_problem(const PositionTable& table, double g, const NoiseModel& noise_model) {
+  return make_problem(table, dwell_standard_errors(table), g, noise_model);
+}
+
+TumbleProblem make_problem(const PositionTable& table, std::vector<Eigen::Vector3d> se, double g,
+                           const NoiseModel& noise_model) {
   TumbleProblem problem;
   problem.table = &table;
-  problem.se = dwell_standard_errors(table);
+  problem.se = std::move(se);
   problem.unit_weights = !has_usable_std(table);
   problem.g = g;
   if (noise_model.white() || problem.unit_weights) return problem;
@@ -276,6 +282,11 @@ TumbleSolution solve(const TumbleProblem& problem) {
 using namespace tumble_detail;
 
 FitResult fit_tumble(const PositionTable& table, const TumbleFitOptions& options) {
+  return fit_tumble(PreparedTable(table), options);
+}
+
+FitResult fit_tumble(const PreparedTable& prepared, const TumbleFitOptions& options) {
+  const PositionTable& table = prepared.table();
   const std::size_t n = table.rows.size();
   if (n < options.min_rests) {
     throw FitError("tumble: " + std::to_string(n) + " rests, at least " +
@@ -290,7 +301,8 @@ FitResult fit_tumble(const PositionTable& table, const TumbleFitOptions& options
                      "only (phase '-' without f_x,f_y,f_z)");
   }
   const double g = options.local_gravity;
-  const TumbleProblem problem = make_problem(table, g, options.noise_model);
+  const TumbleProblem problem =
+      make_problem(table, prepared.standard_errors(), g, options.noise_model);
   const TumbleSolution sol = solve(problem);
   const Matrix9 cov = checked_tumble_inverse(sol.information) * sol.scale;
 

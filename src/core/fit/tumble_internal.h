@@ -83,6 +83,9 @@ struct TumbleProblem {
 };
 
 TumbleProblem make_problem(const PositionTable& table, double g, const NoiseModel& noise_model);
+// The same with the rests' standard errors given (a prepared table's, dwell_standard_errors).
+TumbleProblem make_problem(const PositionTable& table, std::vector<Eigen::Vector3d> se, double g,
+                           const NoiseModel& noise_model);
 
 // How the rests are weighted at an estimate. White: each by the sigma of its residual
 // (rest_sigma). GLS: jointly, by the lower Cholesky factor L of the residuals' covariance.

@@ -17,10 +17,11 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
   // Noise that is not white (docs/design.md section 12): the rest's slow part fitted again to the
   // run's dwell means, for the fit as for the analysis: a gimbal or position table through its
   // model (discrepancy.h slow_part_from_run), a tumble through the ellipsoid (tumble.h
-  // slow_part_from_tumble).
+  // slow_part_from_tumble). The table is prepared once for the fit (fit/prepared_table.h).
+  const PreparedTable prepared(table);
   FitOptions fit_options = options.fit;
   if (fit_options.noise_model.slow_part_to_fit()) {
-    const std::size_t unknown = rows_with_unknown_orientation(table);
+    const std::size_t unknown = prepared.rows_with_unknown_orientation();
     if (unknown == 0) {
       fit_options.noise_model = slow_part_from_run(table, fit_options);
     } else if (unknown == table.rows.size()) {
@@ -28,7 +29,7 @@ CalibrationReport fit_and_analyze(const PositionTable& table, const RawStreams* 
           slow_part_from_tumble(table, fit_options.noise_model, fit_options.local_gravity);
     }
   }
-  report.base_fit = fit(table, fit_options);
+  report.base_fit = fit(prepared, fit_options);
   report.certificate = report.base_fit;
   report.noise = dwell_noise(table);
   if (!options.analyze) return report;

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/fit/prepared_table.h"
 #include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/model/effects.h"
 #include "accel_intrinsics/core/model/intrinsics.h"
@@ -102,6 +103,9 @@ struct FitResult {
 // orientations (gimbal phases present with min_positions_per_phase dwells, rows with
 // f_x,f_y,f_z) whose unit specific forces determine S and O (docs/design.md section 6).
 FitResult fit(const PositionTable& table, const FitOptions& options = {});
+// The same on a table prepared once (prepared_table.h): fit(table) prepares it and calls this;
+// a caller that fits one table with several options prepares it once.
+FitResult fit(const PreparedTable& table, const FitOptions& options = {});
 
 // Standard error of each dwell mean (std / sqrt(n)); rows with n < 2 or zero std get the median
 // of the other rows of the same accelerometer (all zero: unit weights, noise-free data). With

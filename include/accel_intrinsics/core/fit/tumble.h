@@ -48,6 +48,8 @@ struct TumbleFitOptions {
 // ellipsoid, S a_hat g + O), chi2 over the scalar residuals, dof = rests - 9. Throws FitError for
 // too few rests or rests that do not determine the ellipsoid, naming what to add.
 FitResult fit_tumble(const PositionTable& table, const TumbleFitOptions& options = {});
+// The same on a prepared table (prepared_table.h; fit() passes its own).
+FitResult fit_tumble(const PreparedTable& table, const TumbleFitOptions& options = {});
 
 // The rest's slow part fitted again to the whole tumble (docs/design.md section 12), as
 // slow_part_from_run does for a gimbal run (discrepancy.h). A long rest's Allan fit sees a random
