@@ -154,7 +154,7 @@ def run(n, seed, table_path):
         print("[mutants] the unmutated build failed: %s" % os.path.join(logs, "baseline.build.log"))
         sys.exit(2)
     tier = {b: fast_tier.gtest_filter(b) for b in binaries}
-    timeouts = {}
+    timeouts, tier_s = {}, {}
     for binary in binaries:
         log = os.path.join(logs, "sample.baseline.%s.log" % binary)
         if os.path.exists(log):
@@ -162,6 +162,7 @@ def run(n, seed, table_path):
         t0 = time.time()
         ok, why = mutants.run_test(ws, (binary, tier[binary]), log, 900)
         seconds = time.time() - t0
+        tier_s[binary] = seconds
         if not ok:
             print("[mutants] baseline: the fast tier of %s fails unmutated (%s, log %s): fix it"
                   " first" % (binary, why, log))
@@ -229,8 +230,10 @@ def run(n, seed, table_path):
             ", ".join("%s %d" % (r, by_rule[r]) for r in mutant_rules.RULES)),
         "- commit %s, run %s UTC" % (commit_of(mutants.REPO),
                                      datetime.datetime.utcnow().strftime("%Y-%m-%d %H:%M")),
-        "- each mutant built and run against the fast tier of %s (--gtest_fail_fast)" %
-        ", ".join(binaries),
+        "- each mutant built and run against the fast tier (tools/slow_tests.txt left out) of %s"
+        " (--gtest_fail_fast); unmutated it takes %s: %.0f s" % (
+            ", ".join(binaries), ", ".join("%s %.0f s" % (b, tier_s[b]) for b in binaries),
+            sum(tier_s.values())),
         "- wall time (waits for the build lock left out): %.0f s per mutant on average (build and"
         " tests; %s), %.0f s for the unmutated build and fast tier first, %.0f s in all" % (
             per_mutant, ", ".join("%s %.0f s" % (v, sum(t) / len(t)) for v, t in
