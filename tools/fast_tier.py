@@ -62,7 +62,8 @@ def run(ws, show_times):
     for binary in BINARIES:
         path = os.path.join(ws, "devel", "lib", "accel_intrinsics", binary)
         for pattern in unmatched(ws, binary):
-            print("%s: the slow pattern %s names no test (tools/slow_tests.txt)" % (binary, pattern))
+            print("%s: the slow pattern %s names no test (tools/slow_tests.txt)"
+                  % (binary, pattern))
             failed.append(binary + " (slow list)")
         t0 = time.time()
         r = subprocess.run([path, "--gtest_filter=" + gtest_filter(binary),
@@ -71,7 +72,8 @@ def run(ws, show_times):
         seconds = time.time() - t0
         total += seconds
         counted = re.search(r"\[==========\] (\d+) tests? from", r.stdout)
-        print("%-15s %6.1f s  %s tests  %s" % (binary, seconds, counted.group(1) if counted else "?",
+        print("%-15s %6.1f s  %s tests  %s" % (binary, seconds,
+                                               counted.group(1) if counted else "?",
                                                "passed" if r.returncode == 0 else "FAILED"))
         if r.returncode != 0:
             failed.append(binary)
@@ -79,7 +81,8 @@ def run(ws, show_times):
             for name, ms in re.findall(r"^\[       OK \] (\S+) \((\d+) ms\)", r.stdout, re.M):
                 if int(ms) > 2000:
                     print("    %-70s %6.1f s" % (name, int(ms) / 1000.0))
-    print("fast tier: %.1f s in all%s" % (total, (", FAILED: " + " ".join(failed)) if failed else ""))
+    print("fast tier: %.1f s in all%s"
+          % (total, (", FAILED: " + " ".join(failed)) if failed else ""))
     return 1 if failed else 0
 
 

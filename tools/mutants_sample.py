@@ -218,7 +218,8 @@ def run(n, seed, table_path):
     for m, verdict, _, seconds in rows:
         times.setdefault(verdict, []).append(seconds)
     score_line = ("Score: %d caught / (%d compiled - %d equivalent) = %.1f %%; %d survived, %d did"
-                  " not compile." % (caught, compiled, equiv, score, survived, len(rows) - compiled))
+                  " not compile." % (caught, compiled, equiv, score, survived,
+                                     len(rows) - compiled))
     header = [
         "# Mutants drawn by rule: a sample (generated)",
         "",

@@ -122,7 +122,8 @@ def test_apply_changes_only_the_line_and_refuses_a_changed_file():
 
 
 def pool():
-    text = "".join("  x%d = a + %d * b;\n  if (x%d < 2.5) f(p, q);\n" % (i, i, i) for i in range(30))
+    text = "".join("  x%d = a + %d * b;\n  if (x%d < 2.5) f(p, q);\n" % (i, i, i)
+                   for i in range(30))
     return mr.mutations_of_text("a.cpp", text)
 
 
