@@ -4,6 +4,7 @@ to a scratch copy of the repository with its own catkin workspace, built increme
 tests each names run; a mutation is "caught" when they fail and "SURVIVED" when they pass.
 Run it through tools/mutants.sh (which sets up the environment); see docs/development.md."""
 import argparse
+import contextlib
 import fcntl
 import os
 import shlex
@@ -102,6 +103,38 @@ def sync_copy(source):
     return changed
 
 
+def scratch_layout():
+    """The scratch directory (MUTANTS_DIR), the copy of the checkout in it, its workspace and
+    its logs, the copy brought up to date. The copy is named as the checkout, beside the
+    workspace as the checkout is beside its own: the compiler then sees the same relative paths,
+    and ccache (CCACHE_BASEDIR a common parent) serves the unmutated objects of the main
+    workspace."""
+    scratch = os.environ["MUTANTS_DIR"]
+    source = os.path.join(scratch, os.path.basename(REPO))
+    ws = os.path.join(scratch, "ws")
+    logs = os.path.join(scratch, "logs")
+    os.makedirs(logs, exist_ok=True)
+    changed = sync_copy(source)
+    print("[mutants] scratch copy %s (%d files updated), workspace %s, logs %s"
+          % (source, changed, ws, logs), flush=True)
+    return scratch, source, ws, logs
+
+
+@contextlib.contextmanager
+def mutated_file(path, mutate):
+    """The file at `path` rewritten as mutate(its text) for the duration of the block, then
+    restored byte for byte."""
+    with open(path) as f:
+        original = f.read()
+    try:
+        with open(path, "w") as f:
+            f.write(mutate(original))
+        yield
+    finally:
+        with open(path, "w") as f:
+            f.write(original)
+
+
 def with_lock(env_name, command):
     lock = os.environ.get(env_name, "")
     return ["flock", lock] + command if lock else command
@@ -161,15 +194,16 @@ def build(ws, source, targets, log):
         return subprocess.run(command, env=env, stdout=out, stderr=subprocess.STDOUT).returncode == 0
 
 
-def run_test(ws, spec, log, timeout):
-    """True when the test passed. A timeout counts as a failure (the mutation hung a test)."""
+def run_test(ws, spec, log, timeout, extra_args=()):
+    """True when the test passed. A timeout counts as a failure (the mutation hung a test).
+    extra_args go to a gtest binary after its filter (e.g. --gtest_fail_fast)."""
     kind, arg = spec
     setup = "source %s >/dev/null 2>&1" % shlex.quote(os.path.join(ws, "devel", "setup.bash"))
     if kind == "rostest":
         run = with_lock("ACCEL_ROSTEST_LOCK", ["rostest", "accel_intrinsics", arg])
     else:
         binary = os.path.join(ws, "devel", "lib", "accel_intrinsics", kind)
-        run = [binary, "--gtest_filter=" + arg]
+        run = [binary, "--gtest_filter=" + arg] + list(extra_args)
     command = ["bash", "-c", setup + " && exec " + " ".join(shlex.quote(x) for x in run)]
     with open(log, "a") as out:
         out.write("$ %s\n" % " ".join(run))
@@ -204,7 +238,16 @@ def main():
     parser.add_argument("--only", default="", help="comma-separated mutation names")
     parser.add_argument("--skip-baseline", action="store_true",
                         help="do not run the tests unmutated first (they must pass)")
+    parser.add_argument("--sample", type=int, default=0,
+                        help="instead of the list: N mutations drawn by rule (mutants_sample.py)")
+    parser.add_argument("--seed", type=int, default=1, help="the seed of --sample")
+    parser.add_argument("--table", default=os.path.join(REPO, "docs", "generated",
+                                                        "mutants_sample.md"),
+                        help="where --sample writes its table")
     args = parser.parse_args()
+    if args.sample:
+        import mutants_sample
+        sys.exit(mutants_sample.run(args.sample, args.seed, args.table))
 
     mutations, errors = read_list(args.list)
     errors += check_patterns(mutations, REPO)
@@ -220,18 +263,8 @@ def main():
         print("%d mutations, %d list errors" % (len(mutations), len(errors)))
         sys.exit(1 if errors else 0)
 
-    scratch = os.environ["MUTANTS_DIR"]
-    # The copy is named as the checkout, beside the workspace as the checkout is beside its
-    # own: the compiler then sees the same relative paths, and ccache (CCACHE_BASEDIR a common
-    # parent) serves the unmutated objects of the main workspace.
-    source = os.path.join(scratch, os.path.basename(REPO))
-    ws = os.path.join(scratch, "ws")
-    logs = os.path.join(scratch, "logs")
-    os.makedirs(logs, exist_ok=True)
+    scratch, source, ws, logs = scratch_layout()
     timeout = int(os.environ.get("MUTANTS_TEST_TIMEOUT", "900"))
-    changed = sync_copy(source)
-    print("[mutants] scratch copy %s (%d files updated), workspace %s, logs %s"
-          % (source, changed, ws, logs), flush=True)
 
     all_specs = sorted(set(s for m in mutations for s in m.tests))
     # MUTANTS_EXTRA_TARGETS: more targets for the unmutated build (e.g. to run other tests there).
@@ -260,14 +293,10 @@ def main():
         lock.turn()
         start = time.time()
         path = os.path.join(source, m.path)
-        with open(path) as f:
-            original = f.read()
         log = os.path.join(logs, m.name + ".log")
         if os.path.exists(log):
             os.remove(log)
-        try:
-            with open(path, "w") as f:
-                f.write(original.replace(m.pattern, m.replacement, 1))
+        with mutated_file(path, lambda text: text.replace(m.pattern, m.replacement, 1)):
             if not build(ws, source, targets_for(m.tests, source), log):
                 result, caught_by = "BUILD FAILED", "(the mutant does not compile: %s)" % log
             else:
@@ -286,9 +315,6 @@ def main():
                     result, caught_by = "caught", "; ".join(failing)
                 else:
                     result, caught_by = "SURVIVED", "(%s passed)" % spec_text(m.tests)
-        finally:
-            with open(path, "w") as f:
-                f.write(original)
         rows.append((m, result, caught_by))
         print("[mutants] %d/%d %s: %s by %s (%.0f s)" % (index, len(mutations), m.name, result,
                                                       caught_by, time.time() - start), flush=True)
