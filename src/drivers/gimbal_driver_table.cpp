@@ -125,7 +125,7 @@ std::vector<GimbalDriverRow> build_table() {
                },
                make<Smc100Driver, SerialGimbalOptions>});
   t.push_back({"ros_joint", "axes that are ROS joints (JointState in, Float64 command per axis)",
-               "", read_ros_joint, make<RosJointGimbal, RosJointOptions>});
+               "joint_controller_emulator", read_ros_joint, make<RosJointGimbal, RosJointOptions>});
   t.push_back({"manual", "an indexing head turned by hand, each pose checked by the IMU", "",
                read_manual, make<ManualGimbal, ManualGimbalOptions>});
   return t;

@@ -33,6 +33,8 @@ NODE_SOURCES = {
     "apply_calibration": ["src/ros/apply_calibration_node.cpp", "src/nodes/apply_calibration.cpp",
                           "src/nodelets/apply_calibration_nodelet.cpp"],
     "sim_clock": ["src/ros/sim_clock.cpp", "src/nodes/sim_clock.cpp"],
+    "joint_controller_emulator": ["src/ros/joint_controller_emulator.cpp",
+                                  "src/nodes/joint_controller_emulator.cpp"],
 }
 # Python nodes: their private parameters are the literal `rospy.get_param("~name"` calls.
 PY_NODE_SOURCES = {"dashboard": ["scripts/dashboard"]}

@@ -81,6 +81,7 @@ TEST(GimbalDriverTable, RowsAndNames) {
   EXPECT_EQ(ai::find_gimbal_driver("dynamixel"), nullptr);
   ASSERT_NE(ai::find_gimbal_driver("grbl"), nullptr);
   EXPECT_EQ(ai::find_gimbal_driver("grbl")->emulator, "grbl_emulator");
+  EXPECT_EQ(ai::find_gimbal_driver("ros_joint")->emulator, "joint_controller_emulator");
   for (const ai::GimbalDriverRow& row : ai::gimbal_driver_table()) {
     EXPECT_TRUE(row.read_options && row.make) << row.name;
     EXPECT_FALSE(row.summary.empty()) << row.name;
