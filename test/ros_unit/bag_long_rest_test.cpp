@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <optional>
 #include <random>
@@ -69,9 +70,9 @@ Written write_bag(const std::string& path, const std::vector<double>& dwells_s) 
     while (c + 1 < w.commands.size() && w.commands[c + 1].stamp_s <= stamp) ++c;
     const double angle = w.commands[c].angle_rad;
     const double ramp = 1e-4 * (stamp - 100.0);  // a slow bias on u
-    w.samples.push_back({stamp, Eigen::Vector3d(ramp + noise(rng), 9.81 * std::sin(angle) +
-                                                                       noise(rng),
-                                                 9.81 * std::cos(angle) + noise(rng))});
+    w.samples.push_back(
+        {stamp, Eigen::Vector3d(ramp + noise(rng), 9.81 * std::sin(angle) + noise(rng),
+                                9.81 * std::cos(angle) + noise(rng))});
   }
   struct Message {
     double receive_s;
