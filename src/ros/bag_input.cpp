@@ -354,8 +354,18 @@ BagInputStats feed_bag(const std::string& path, const BagInputOptions& options,
   return stats;
 }
 
+namespace {
+void observe_long_rest(const BagInputOptions& options, core::DwellAssembler& assembler) {
+  core::LongRestRecorder* rest = options.long_rest;
+  if (!rest) return;
+  assembler.set_release_observers([rest](const core::GimbalEvent& e) { rest->add_command(e); },
+                                  [rest](const core::ImuSample& s) { rest->add_sample(s); });
+}
+}  // namespace
+
 BagRun read_bag(const std::string& path, const BagInputOptions& options) {
   core::DwellAssembler assembler(options.assembler);
+  observe_long_rest(options, assembler);
   BagRun run;
   run.stats = feed_bag(path, options, assembler);
   run.table = assembler.table();
@@ -401,6 +411,7 @@ BagRun read_bags(const std::vector<std::string>& paths, const BagInputOptions& o
                    [](const auto& a, const auto& b) { return a.first < b.first; });
 
   core::DwellAssembler assembler(options.assembler);
+  observe_long_rest(options, assembler);
   BagInputOptions each = options;
   each.flush_at_end = false;
   BagRun run;

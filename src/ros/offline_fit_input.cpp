@@ -20,6 +20,7 @@
 #include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/fit/tumble.h"
 #include "accel_intrinsics/core/noise/noise.h"
+#include "accel_intrinsics/core/noise/rest_accumulator.h"
 #include "accel_intrinsics/core/run/calibrate.h"
 #include "accel_intrinsics/io/atomic_file.h"
 #include "accel_intrinsics/io/budget_file.h"
@@ -222,6 +223,9 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
   options.command_topic_optional = true;  // IMU alone: a hand tumble
   core::ClockCheck clock_check;
   if (!args.skip_clock_check) options.clock_check = &clock_check;
+  // The run's first dwell accumulated in the one read, as the live run does (its long rest).
+  core::LongRestRecorder long_rest(args.settle_discard_s);
+  options.long_rest = &long_rest;
   std::string bags;
   for (const std::string& b : args.bags) bags += (bags.empty() ? "" : ", ") + b;
   options.progress_label = std::string(kOfflineFitProgram) + ": reading " + bags;
@@ -286,6 +290,7 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
       BagInputOptions again = options;
       again.raw_samples = &samples;
       again.clock_check = nullptr;
+      again.long_rest = nullptr;
       try {
         read_bags(args.bags, again);
       } catch (const BagInputError& e) {
@@ -297,10 +302,20 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
       throw Failure{kOfflineFitBadInput, "no IMU messages on '" + st.imu_topic + "' in " + st.path};
     input.read_as = "no gimbal commands in " + st.path + ", read as a hand tumble: ";
     rests_from_stream(std::move(samples), args, &input);
+  } else if (long_rest.holds_long_rest(input.table, 0.0)) {
+    // The long rest is the run's first dwell (a gimbal protocol's initial rest): its statistics
+    // came with the one read, as the live run's, and nothing was kept per sample.
+    try {
+      input.noise_model = long_rest.noise_model(input.table, 0.0);
+    } catch (const std::invalid_argument& e) {
+      err << kOfflineFitProgram << ": note: no noise model from the long rest: " << e.what()
+          << std::endl;
+    }
   } else if (core::find_long_rest(input.table)) {
-    // The noise model needs the raw samples of the long rest, not only its mean and std: with
-    // --analyze they were kept, otherwise the bags are read once more for them (only runs that
-    // have a long rest pay for it).
+    // A long rest after the first dwell (a dwell 10 times the median, later in the run) was not
+    // accumulated while reading: the noise model needs its raw samples, not only its mean and
+    // std. With --analyze they were kept, otherwise the bags are read once more for them (only
+    // such runs pay for it).
     std::vector<core::ImuSample> kept;
     const std::vector<core::ImuSample>* samples = &input.raw.samples;
     if (!args.analyze) {
@@ -308,6 +323,7 @@ Input read_bag_input(const OfflineFitArguments& args, std::ostream& err) {
       again.raw_samples = &kept;
       again.raw_commands = nullptr;
       again.clock_check = nullptr;
+      again.long_rest = nullptr;
       try {
         read_bags(args.bags, again);
       } catch (const BagInputError& e) {

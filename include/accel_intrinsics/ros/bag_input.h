@@ -13,6 +13,7 @@
 #include "accel_intrinsics/core/analysis/clock_check.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/noise/rest_accumulator.h"
 #include "accel_intrinsics/ros/bag_topics.h"
 #include "accel_intrinsics/ros/channel_messages.h"
 #include "accel_intrinsics/ros/names.h"
@@ -56,6 +57,10 @@ struct BagInputOptions {
   double imu_time_offset_s = 0.0;
   // When set, sees every accepted command and (shifted) IMU sample: the clock check.
   core::ClockCheck* clock_check = nullptr;
+  // When set, fed the commands and samples the assembler releases in stamp order (as the live
+  // run's, calibration_run.cpp): the run's first dwell accumulated as it comes, in constant
+  // memory, for the noise model (docs/noise.md). Set its settle discard to the assembler's.
+  core::LongRestRecorder* long_rest = nullptr;
   // The IMU topic was not named: a bag whose only sensor_msgs/Imu topic has another name uses it.
   bool imu_by_type = false;
   // Flush the assembler after the last message (false: more bags of the same run follow).

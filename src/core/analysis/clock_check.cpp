@@ -26,8 +26,11 @@ ClockCheck::ClockCheck(const ClockCheckOptions& options) : options_(options) {
 
 void ClockCheck::reset() {
   commands_.clear();
-  bins_.clear();
-  last_bin_ = bins_.end();
+  chunks_.clear();
+  last_chunk_ = chunks_.end();
+  bins_used_ = 0;
+  first_bin_ = last_bin_ = 0;
+  samples_ = 0;
   have_origin_ = false;
   bins_refused_ = 0;
 }
@@ -48,10 +51,29 @@ void ClockCheck::add_sample(const ImuSample& sample) {
     return;
   }
   const auto k = static_cast<std::int64_t>(k_real);
-  // Samples come nearly in order: most land in the bin of the previous one.
-  if (last_bin_ == bins_.end() || last_bin_->first != k) last_bin_ = bins_.try_emplace(k).first;
-  last_bin_->second.sum += sample.outputs;
-  ++last_bin_->second.n;
+  // Floor division: chunk c holds bins [c kChunkBins, (c + 1) kChunkBins).
+  const std::int64_t c = (k >= 0 ? k : k - (kChunkBins - 1)) / kChunkBins;
+  // Samples come nearly in order: most land in the chunk of the previous one.
+  if (last_chunk_ == chunks_.end() || last_chunk_->first != c) {
+    last_chunk_ = chunks_.try_emplace(c).first;
+    if (last_chunk_->second.empty()) last_chunk_->second.resize(kChunkBins);
+  }
+  Bin& bin = last_chunk_->second[static_cast<std::size_t>(k - c * kChunkBins)];
+  if (bin.n == 0) {
+    if (bins_used_ == 0 || k < first_bin_) first_bin_ = k;
+    if (bins_used_ == 0 || k > last_bin_) last_bin_ = k;
+    ++bins_used_;
+  }
+  bin.sum += sample.outputs;
+  ++bin.n;
+  ++samples_;
+}
+
+std::size_t ClockCheck::memory_bytes() const {
+  // A map node: the chunk's vector and key, and the tree's links (about 4 pointers).
+  constexpr std::size_t kNode = sizeof(std::pair<const std::int64_t, Chunk>) + 4 * sizeof(void*);
+  return sizeof(*this) + commands_.capacity() * sizeof(GimbalEvent) +
+         chunks_.size() * (kNode + kChunkBins * sizeof(Bin));
 }
 
 namespace {
@@ -115,16 +137,13 @@ ClockCheckResult ClockCheck::result() const {
     r.not_checked_why = "fewer than 3 gimbal moves";
     return r;
   }
-  if (bins_.size() < 10) {
+  if (bins_used_ < 10) {
     r.not_checked_why = "too few IMU samples";
     return r;
   }
 
-  std::uint64_t samples = 0;
-  for (const auto& bin : bins_) samples += bin.second.n;
-  const double span_s =
-      static_cast<double>(bins_.rbegin()->first - bins_.begin()->first + 1) * options_.bin_s;
-  if (static_cast<double>(samples) / span_s < options_.min_rate_hz) {
+  const double span_s = static_cast<double>(last_bin_ - first_bin_ + 1) * options_.bin_s;
+  if (static_cast<double>(samples_) / span_s < options_.min_rate_hz) {
     r.not_checked_why = "IMU rate below " + std::to_string(static_cast<int>(options_.min_rate_hz)) +
                         " Hz: too sparse to see the moves";
     return r;
@@ -132,14 +151,19 @@ ClockCheckResult ClockCheck::result() const {
 
   Binned b;
   b.bin_s = options_.bin_s;
-  const std::int64_t k0 = bins_.begin()->first;
+  const std::int64_t k0 = first_bin_;
   b.origin_s = origin_s_ + static_cast<double>(k0) * options_.bin_s;
-  b.size = static_cast<std::size_t>(bins_.rbegin()->first - k0 + 1);
+  b.size = static_cast<std::size_t>(last_bin_ - k0 + 1);
   b.cum_sum.assign(b.size + 1, Eigen::Vector3d::Zero());
   b.cum_n.assign(b.size + 1, 0.0);
-  for (const auto& bin : bins_) {
-    b.cum_sum[bin.first - k0 + 1] = bin.second.sum;
-    b.cum_n[bin.first - k0 + 1] = static_cast<double>(bin.second.n);
+  for (const auto& [c, chunk] : chunks_) {
+    for (std::int64_t i = 0; i < kChunkBins; ++i) {
+      const Bin& bin = chunk[static_cast<std::size_t>(i)];
+      if (bin.n == 0) continue;
+      const std::int64_t k = c * kChunkBins + i;
+      b.cum_sum[k - k0 + 1] = bin.sum;
+      b.cum_n[k - k0 + 1] = static_cast<double>(bin.n);
+    }
   }
   for (std::size_t k = 0; k < b.size; ++k) {
     b.cum_sum[k + 1] += b.cum_sum[k];

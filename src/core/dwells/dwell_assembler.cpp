@@ -260,6 +260,11 @@ void DwellAssembler::close_dwell(double end_stamp_s, CompletedRows* out) {
   out->push_back(row);
 }
 
+std::size_t DwellAssembler::memory_bytes() const {
+  return sizeof(*this) + buffered_events() * sizeof(Event) +
+         table_.rows.capacity() * sizeof(DwellRecord);
+}
+
 bool DwellAssembler::current_dwell(Phase* phase, std::uint32_t* step,
                                    std::uint64_t* samples) const {
   if (!in_dwell_) return false;

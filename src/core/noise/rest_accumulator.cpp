@@ -64,7 +64,7 @@ void StreamingAllan::open_clusters_up_to(std::size_t index) {
     c.stride = stride_of(m);
     c.m_mod = m % c.stride;
     c.m2_mod = (2 * m) % c.stride;
-    c.phase = (index - 1) % c.stride;  // at_index(index) advances it first
+    c.next = index;  // at_index(index) looks at it first
     if (c.stride > 1) {
       c.pending.assign(2 * m / c.stride + 2, Sums{});
       c.started = 1;  // the term at k = 0, theta[0] = 0
@@ -89,9 +89,12 @@ void StreamingAllan::at_index(std::size_t j) {
       ++c.done;
       continue;
     }
-    if (++c.phase == c.stride) c.phase = 0;
+    // A cluster of stride s acts only at indices j with j mod s in {0, m mod s, 2 m mod s}: at
+    // most three in s; the others are skipped on one comparison.
+    if (j < c.next) continue;
+    const std::size_t phase = j % c.stride;
     const std::size_t cap = c.pending.size();
-    if (j >= 2 * c.m && c.phase == c.m2_mod) {
+    if (j >= 2 * c.m && phase == c.m2_mod) {
       Sums& p = c.pending[c.done % cap];
       for (int s = 0; s < 3; ++s) {
         const long double d = p[s] + t[s];
@@ -99,15 +102,21 @@ void StreamingAllan::at_index(std::size_t j) {
       }
       ++c.done;
     }
-    if (j >= c.m && c.phase == c.m_mod) {
+    if (j >= c.m && phase == c.m_mod) {
       Sums& p = c.pending[c.halfway % cap];
       for (int s = 0; s < 3; ++s) p[s] -= 2.0L * t[s];
       ++c.halfway;
     }
-    if (c.phase == 0) {
+    if (phase == 0) {
       c.pending[c.started % cap] = t;
       ++c.started;
     }
+    // Steps to the next phase of the three (a full stride back to this one).
+    auto ahead = [&](std::size_t target) {
+      const std::size_t d = (target + c.stride - phase) % c.stride;
+      return d == 0 ? c.stride : d;
+    };
+    c.next = j + std::min({ahead(0), ahead(c.m_mod), ahead(c.m2_mod)});
   }
 }
 
@@ -166,7 +175,7 @@ void RestAccumulator::SubBlock::add(double t, const Eigen::Vector3d& x) {
   t_last = t;
   ++n;
   const Eigen::Vector3d delta = x - mean;
-  mean += delta / static_cast<double>(n);
+  mean += delta * (1.0 / static_cast<double>(n));  // one division, not three
   m2 += delta.cwiseProduct(x - mean);
 }
 
@@ -191,13 +200,15 @@ void RestAccumulator::add(double stamp_s, const Eigen::Vector3d& outputs) {
   if (samples() == 0) {
     first_s_ = stamp_s;
     width_s_ = kFirstSubBlockS;
+    per_width_ = 1.0 / kFirstSubBlockS;
     sub_.clear();
     sub_.reserve(kSubBlocks);
   } else if (stamp_s < last_s_) {
     throw std::invalid_argument("RestAccumulator: samples out of stamp order");
   }
   last_s_ = stamp_s;
-  std::size_t i = static_cast<std::size_t>((stamp_s - first_s_) / width_s_);
+  // A power of two: the product is the quotient, exactly.
+  std::size_t i = static_cast<std::size_t>((stamp_s - first_s_) * per_width_);
   while (i >= kSubBlocks) {
     // Neighbours merged pairwise, the duration doubled: the sub-blocks stay of equal duration.
     const std::size_t half = (sub_.size() + 1) / 2;
@@ -208,7 +219,8 @@ void RestAccumulator::add(double stamp_s, const Eigen::Vector3d& outputs) {
     }
     sub_.resize(half);
     width_s_ *= 2.0;
-    i = static_cast<std::size_t>((stamp_s - first_s_) / width_s_);
+    per_width_ *= 0.5;
+    i = static_cast<std::size_t>((stamp_s - first_s_) * per_width_);
   }
   if (i >= sub_.size()) sub_.resize(i + 1);
   sub_[i].add(stamp_s, outputs);
@@ -262,7 +274,7 @@ std::optional<NoiseModel> RestAccumulator::noise_model() const {
 void RestAccumulator::clear() {
   allan_.clear();
   first_s_ = last_s_ = 0.0;
-  width_s_ = 0.0;
+  width_s_ = per_width_ = 0.0;
   sub_.clear();
 }
 
@@ -302,16 +314,19 @@ void LongRestRecorder::clear() {
   rest_.clear();
 }
 
-std::optional<NoiseModel> LongRestRecorder::noise_model(const PositionTable& table,
-                                                        double initial_rest_s) const {
+bool LongRestRecorder::holds_long_rest(const PositionTable& table, double initial_rest_s) const {
   const std::optional<LongRest> span = find_long_rest(table, initial_rest_s);
   // The rest's samples are all here when the recorded span [start_s_, end_s_] covers the rest's
   // row and what was accumulated lies inside it (a tumble's row ends just before its MOVING).
-  if (!span || stage_ != Stage::After || rest_.samples() == 0 || start_s_ > span->t_start_s ||
-      end_s_ < span->t_end_s || rest_.first_stamp_s() < span->t_start_s ||
-      rest_.last_stamp_s() > span->t_end_s)
-    return std::nullopt;
-  return noise_model_of_rest(rest_, *span);
+  return span && stage_ == Stage::After && rest_.samples() > 0 && start_s_ <= span->t_start_s &&
+         end_s_ >= span->t_end_s && rest_.first_stamp_s() >= span->t_start_s &&
+         rest_.last_stamp_s() <= span->t_end_s;
+}
+
+std::optional<NoiseModel> LongRestRecorder::noise_model(const PositionTable& table,
+                                                        double initial_rest_s) const {
+  if (!holds_long_rest(table, initial_rest_s)) return std::nullopt;
+  return noise_model_of_rest(rest_, *find_long_rest(table, initial_rest_s));
 }
 
 std::optional<NoiseModel> noise_model_of_rest(const RestAccumulator& rest, const LongRest& span) {

@@ -37,6 +37,17 @@ RunStatus CalibrationRun::status(double now_s) const {
   return s;
 }
 
+RunMemory CalibrationRun::memory() const {
+  RunMemory m;
+  m.assembler = assembler_.memory_bytes();
+  m.long_rest = long_rest_.memory_bytes();
+  m.clock_check = clock_check_.memory_bytes();
+  m.moves = moves_.commands().capacity() * sizeof(GimbalEvent) +
+            moves_.samples().capacity() * sizeof(ImuSample);
+  m.table = table_.rows.capacity() * sizeof(DwellRecord);
+  return m;
+}
+
 CheckpointState CalibrationRun::checkpoint_state() const {
   CheckpointState c;
   c.time_origin_s = table_.time_origin_s;

@@ -13,7 +13,9 @@
 // SETTLED long after it stopped moving biases step 3 by half that delay; such a shift is not
 // reported, since it moves no motion out of the dwells (min_gain).
 //
-// Memory: one bin per `bin_s` of IMU time (100 per second by default), whatever the IMU rate.
+// Memory: one bin (32 bytes) per `bin_s` of IMU time (100 per second by default, 3.2 kB per second
+// of the run), whatever the IMU rate, in chunks of kChunkBins consecutive bins: a stream that
+// jumps between epochs costs one chunk per stretch, not the bins in between.
 #pragma once
 
 #include <Eigen/Core>
@@ -75,19 +77,26 @@ class ClockCheck {
   void reset();
 
   ClockCheckResult result() const;
+  // Bytes held (bins and commands): the test of memory per second of the run.
+  std::size_t memory_bytes() const;
+  static constexpr std::int64_t kChunkBins = 256;
 
  private:
   struct Bin {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     std::uint64_t n = 0;
   };
+  using Chunk = std::vector<Bin>;  // kChunkBins bins from its key x kChunkBins
 
   ClockCheckOptions options_;
   std::vector<GimbalEvent> commands_;
   bool have_origin_ = false;
   double origin_s_ = 0.0;  // bins count from the first IMU stamp
-  std::map<std::int64_t, Bin> bins_;
-  std::map<std::int64_t, Bin>::iterator last_bin_;
+  std::map<std::int64_t, Chunk> chunks_;
+  std::map<std::int64_t, Chunk>::iterator last_chunk_;
+  std::uint64_t bins_used_ = 0;                // bins with a sample
+  std::int64_t first_bin_ = 0, last_bin_ = 0;  // the lowest and highest with one
+  std::uint64_t samples_ = 0;
   std::uint64_t bins_refused_ = 0;
 };
 

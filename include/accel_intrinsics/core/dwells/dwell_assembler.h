@@ -113,6 +113,10 @@ class DwellAssembler {
   double time_origin_s() const { return table_.time_origin_s; }
   // The dwell being accumulated (phase, step) and how many samples so far; false if none.
   bool current_dwell(Phase* phase, std::uint32_t* step, std::uint64_t* samples) const;
+  // Events waiting in the reorder buffer (at most reorder window x message rate) and the bytes
+  // it and the table hold: the test of memory that does not grow with a dwell's length.
+  std::size_t buffered_events() const { return in_order_.size() + pending_.size(); }
+  std::size_t memory_bytes() const;
 
  private:
   struct Event {

@@ -50,9 +50,9 @@ class StreamingAllan {
   using Sums = std::array<long double, 3>;
   struct Cluster {
     std::size_t m = 0, stride = 1;
-    std::size_t phase = 0;                           // current index mod stride
-    std::size_t m_mod = 0, m2_mod = 0;               // m mod stride, 2 m mod stride
-    std::vector<Sums> pending;                       // terms under way, a ring by term number
+    std::size_t next = 0;               // the next index at which the cluster acts (stride > 1)
+    std::size_t m_mod = 0, m2_mod = 0;  // m mod stride, 2 m mod stride
+    std::vector<Sums> pending;          // terms under way, a ring by term number
     std::size_t started = 0, halfway = 0, done = 0;  // term counters
     Sums sum{};                                      // of the squared second differences
   };
@@ -78,11 +78,13 @@ class StreamingAllan {
 //    sub-block joins the block that holds its samples' middle stamp. A block is then its whole
 //    sub-blocks: its mean, std, n and first and last stamps are exactly those of the samples in
 //    [t_start_s, t_end_s], and its edges lie within one sub-block (span / kSubBlocks to 2 span /
-//    kSubBlocks, 0.7 % to 1.5 % of a block) of the equal-duration edges.
-// Memory: kSubBlocks x 72 bytes plus StreamingAllan's, about 0.45 MB at any rate and length.
+//    kSubBlocks, 3 % to 6 % of a block) of the equal-duration edges.
+// Memory: kSubBlocks x 72 bytes (74 kB) plus StreamingAllan's (about 0.1 MB), about 0.2 MB at any
+// rate and length. 1024 sub-blocks, not more: a block's mean, std, n and stamps are exact whatever
+// the sub-block count; only its edges move (the slow-part fit takes each block at its own stamps).
 class RestAccumulator {
  public:
-  static constexpr std::size_t kSubBlocks = 4096;
+  static constexpr std::size_t kSubBlocks = 1024;
   // Samples must come in stamp order (non-decreasing); others throw std::invalid_argument.
   void add(double stamp_s, const Eigen::Vector3d& outputs);
   std::size_t samples() const { return allan_.samples(); }
@@ -115,6 +117,7 @@ class RestAccumulator {
   StreamingAllan allan_;
   double first_s_ = 0.0, last_s_ = 0.0;
   double width_s_ = 0.0;
+  double per_width_ = 0.0;  // 1 / width_s_
   std::vector<SubBlock> sub_;
 };
 
@@ -134,11 +137,15 @@ class LongRestRecorder {
   void clear();
   std::size_t samples() const { return rest_.samples(); }
   const RestAccumulator& rest() const { return rest_; }
+  std::size_t memory_bytes() const { return sizeof(*this) - sizeof(rest_) + rest_.memory_bytes(); }
   // The noise model of the run's long rest (find_long_rest(table, initial_rest_s)) when it is
   // the first dwell this recorder saw whole (its span covers the rest's row and every sample
   // accumulated lies in the row); nothing otherwise. Throws as
   // RestAccumulator::noise_model.
   std::optional<NoiseModel> noise_model(const PositionTable& table, double initial_rest_s) const;
+  // Whether the long rest of `table` is the dwell this recorder accumulated whole (noise_model
+  // then gives its model, or nothing when it has too few samples).
+  bool holds_long_rest(const PositionTable& table, double initial_rest_s) const;
 
  private:
   enum class Stage { BeforeRest, InRest, After };

@@ -101,6 +101,16 @@ struct RunStatus {
   double newest_sample_stamp_s = -std::numeric_limits<double>::infinity();
 };
 
+// Bytes a run holds, by part (CalibrationRun::memory()): what grows with the run and what must
+// not grow with a dwell's length or the IMU rate (issue 38; docs/noise.md).
+struct RunMemory {
+  std::size_t assembler = 0;    // reorder buffer (window x rate) and the assembler's table
+  std::size_t long_rest = 0;    // the first dwell's statistics (constant)
+  std::size_t clock_check = 0;  // 32 bytes per 10 ms of IMU time: grows with the run
+  std::size_t moves = 0;        // samples around the moves (record_moves only)
+  std::size_t table = 0;        // accepted rows
+};
+
 class CalibrationRun {
  public:
   explicit CalibrationRun(const RunOptions& options);
@@ -175,6 +185,7 @@ class CalibrationRun {
   // checkpoint), or they are too few for a model (`why` then says so).
   std::optional<NoiseModel> noise_model(std::string* why = nullptr) const;
   const LongRestRecorder& long_rest() const { return long_rest_; }
+  RunMemory memory() const;
   // The direction of approach the next row at (phase, step) would have.
   int approach_of_next_row(Phase phase, std::uint32_t step) const;
 
