@@ -80,6 +80,8 @@ def main(argv):
         ("calibration nodelet at 50 kHz: messages not received or dropped late (all runs)", lambda: sum(f("calibration_nodelet_50khz_%s_%s" % (a, b)) for a in ("paced", "bursty") for b in ("lost", "dropped_late")), "<=", 0, lambda v: "%.0f" % v, ISSUE26),
         ("accelerometer node reading serial lines (t,x,y,z) at 1 kHz from a pseudo-terminal", lambda: f("serial_lines_node_1khz_cpu"), "<", 2.0, pct, ISSUE33),
         ("accelerometer node, serial lines at 1 kHz: samples sent but not received", lambda: f("serial_lines_node_1khz_samples_missing"), "<=", 0, lambda v: "%.0f" % v, SET_HERE),
+        ("gimbal controller, ros_joint driver: CPU added by JointState at 1 kHz (minus 10 Hz), the protocol running", lambda: f("ros_joint_controller_1khz_joint_state_handling_cpu"), "<", 1.0, lambda v: "%+.2f points" % v, ISSUE33),
+        ("gimbal controller, ros_joint driver, JointState at 1 kHz / 10 Hz: the whole process", lambda: "%.1f / %.1f %%" % (f("ros_joint_controller_1khz_cpu"), f("ros_joint_controller_10hz_cpu")), None, None, str, ""),
         ("apply node at 10 kHz (TCP in and out), bursts of 5", lambda: f("apply_node_bursty_cpu"), "<", 5.0, pct, ISSUE12),
         ("apply node at 10 kHz (TCP in and out), one message per 100 µs", lambda: f("apply_node_paced_cpu"), "<", 5.0, pct, ISSUE12),
         ("apply nodelet at 10 kHz (in process, pointers), bursts of 5", lambda: f("apply_nodelet_bursty_cpu"), "<", 5.0, pct, ISSUE12),

@@ -16,6 +16,9 @@ void SerialLinesOptions::validate() const {
     throw std::invalid_argument("reconnect_interval_s must be > 0 s");
   }
   if (max_pending < 1) throw std::invalid_argument("max_pending must be >= 1");
+  if (!(std::isfinite(read_period_s) && read_period_s >= 0.0 && read_period_s <= 0.1)) {
+    throw std::invalid_argument("read_period_s must be in [0, 0.1] s");
+  }
   clock.validate();
 }
 
@@ -34,8 +37,11 @@ std::uint64_t SerialLinesStatus::garbled_total() const {
 }
 
 SerialLinesAccelerometer::SerialLinesAccelerometer(const SerialLinesOptions& options,
-                                                   HostClock host_clock)
-    : options_(options), clock_(std::move(host_clock)), fit_(options.clock) {
+                                                   HostClock host_clock, SamplesReady on_samples)
+    : options_(options),
+      clock_(std::move(host_clock)),
+      on_samples_(std::move(on_samples)),
+      fit_(options.clock) {
   options_.validate();
   status_.since_s = clock_();
   thread_ = std::thread([this] { run(); });
@@ -57,8 +63,13 @@ void SerialLinesAccelerometer::set_state(SerialLinkState state, const std::strin
 void SerialLinesAccelerometer::run() {
   SerialPort port;
   std::string line;
-  // Read in short slices so that the destructor's stop is seen within 0.1 s.
+  // Wait for input in short slices so that the destructor's stop is seen within 0.1 s.
   constexpr double kSliceS = 0.1;
+  // With device time, the lines that came within read_period_s are read and stamped together:
+  // one wake-up for several lines. Without it, each line is read as it comes (its stamp).
+  const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(options_.format.has_time() ? options_.read_period_s : 0.0));
+  auto next_read = std::chrono::steady_clock::now();
   while (!stop_) {
     if (!port.is_open()) {
       try {
@@ -78,13 +89,25 @@ void SerialLinesAccelerometer::run() {
       }
     }
     try {
-      if (!port.read_line(&line, kSliceS)) continue;
+      if (period.count() > 0) {
+        std::unique_lock<std::mutex> lock(mutex_);
+        if (wake_.wait_until(lock, next_read, [this] { return stop_.load(); })) break;
+      }
+      if (!port.read_available(kSliceS)) continue;
       const double host_s = clock_();
-      std::lock_guard<std::mutex> lock(mutex_);
-      handle_line(line, host_s);
+      next_read = std::chrono::steady_clock::now() + period;
+      bool stamped = false;
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        const std::uint64_t before = status_.samples;
+        while (port.next_line(&line)) handle_line(line, host_s);
+        stamped = status_.samples != before;
+      }
+      if (stamped && on_samples_) on_samples_();
     } catch (const SerialError& e) {
       port.close();
-      std::lock_guard<std::mutex> lock(mutex_);
+      std::unique_lock<std::mutex> lock(mutex_);
+      const std::uint64_t before = status_.samples;
       ++status_.losses;
       status_.loss_error = e.what();
       set_state(SerialLinkState::Lost, e.what(), clock_());
@@ -98,6 +121,9 @@ void SerialLinesAccelerometer::run() {
       }
       held_.clear();
       fit_.reset();
+      const bool stamped = status_.samples != before;
+      lock.unlock();
+      if (stamped && on_samples_) on_samples_();
     }
   }
 }

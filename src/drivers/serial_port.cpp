@@ -17,6 +17,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// Bytes per read(): several milliseconds of lines at 1 kHz in one call.
+constexpr std::size_t kChunk = 4096;
+
 speed_t baud_constant(int baud) {
   switch (baud) {
     case 9600: return B9600;
@@ -96,12 +99,14 @@ void SerialPort::open(const std::string& path, int baud, bool xon_xoff) {
   fd_ = fd;
   path_ = path;
   buffer_.clear();
+  start_ = 0;
 }
 
 void SerialPort::close() {
   if (fd_ >= 0) ::close(fd_);
   fd_ = -1;
   buffer_.clear();
+  start_ = 0;
 }
 
 void SerialPort::write(const std::string& bytes, double timeout_s) {
@@ -130,7 +135,7 @@ bool SerialPort::fill(double timeout_s) {
   if (fd_ < 0) throw SerialError("serial port " + path_ + " is not open");
   const Clock::time_point deadline = deadline_after(timeout_s);
   for (;;) {
-    char chunk[256];
+    char chunk[kChunk];
     const ssize_t n = ::read(fd_, chunk, sizeof chunk);
     if (n > 0) {
       buffer_.append(chunk, static_cast<std::size_t>(n));
@@ -164,17 +169,42 @@ bool SerialPort::fill(double timeout_s) {
   }
 }
 
+bool SerialPort::next_line(std::string* line) {
+  const std::size_t nl = buffer_.find('\n', start_);
+  if (nl == std::string::npos) {
+    // Only a partial line left: move it to the front, once, before more bytes are appended.
+    if (start_ > 0) {
+      buffer_.erase(0, start_);
+      start_ = 0;
+    }
+    return false;
+  }
+  std::size_t end = nl;
+  if (end > start_ && buffer_[end - 1] == '\r') --end;
+  line->assign(buffer_, start_, end - start_);
+  start_ = nl + 1;
+  if (start_ == buffer_.size()) {
+    buffer_.clear();
+    start_ = 0;
+  }
+  return true;
+}
+
+bool SerialPort::read_available(double timeout_s) {
+  std::size_t before = buffer_.size();
+  if (!fill(timeout_s)) return false;
+  // A full chunk: the driver may hold more; read on without waiting.
+  while (buffer_.size() - before == kChunk) {
+    before = buffer_.size();
+    if (!fill(0.0)) break;
+  }
+  return true;
+}
+
 bool SerialPort::read_line(std::string* line, double timeout_s) {
   const Clock::time_point deadline = deadline_after(timeout_s);
   for (;;) {
-    const std::size_t nl = buffer_.find('\n');
-    if (nl != std::string::npos) {
-      std::string out = buffer_.substr(0, nl);
-      buffer_.erase(0, nl + 1);
-      if (!out.empty() && out.back() == '\r') out.pop_back();
-      *line = out;
-      return true;
-    }
+    if (next_line(line)) return true;
     const int left = remaining_ms(deadline);
     if (!fill(left / 1000.0)) {
       if (left == 0 || Clock::now() >= deadline) return false;
@@ -185,6 +215,7 @@ bool SerialPort::read_line(std::string* line, double timeout_s) {
 void SerialPort::discard_input() {
   if (fd_ < 0) return;
   buffer_.clear();
+  start_ = 0;
   tcflush(fd_, TCIFLUSH);
   while (fill(0.0)) buffer_.clear();
 }

@@ -91,14 +91,20 @@ AccelerometerNode::AccelerometerNode(ros::NodeHandle nh, ros::NodeHandle pnh,
                                      const AccelerometerOptions& options)
     : nh_(nh), pnh_(pnh), options_(options), buffer_(ros::Duration(options.tf_cache_s)) {
   imu_pub_ = nh_.advertise<sensor_msgs::Imu>(names::kImuTopic, 10000);
-  timer_ =
-      nh_.createTimer(ros::Duration(1.0 / options_.poll_hz), &AccelerometerNode::on_timer, this);
   if (options_.source == "serial_lines") {
-    // A bare MEMS part on a microcontroller (docs/design.md section 15): no tf, no gimbal.
+    // A bare MEMS part on a microcontroller (docs/design.md section 15): no tf, no gimbal. The
+    // reader thread publishes what it stamped as it reads (no polling timer, no wake-up of this
+    // thread per batch); the timer only logs and publishes the diagnostics.
+    timer_ =
+        nh_.createTimer(ros::Duration(1.0 / kSerialStatusHz), &AccelerometerNode::on_timer, this);
     auto serial = std::make_unique<SerialLinesAccelerometer>(
-        options_.serial_lines, [] { return ros::Time::now().toSec(); });
+        options_.serial_lines, [] { return ros::Time::now().toSec(); },
+        [this] {
+          if (serial_ready_) poll(ros::Time::now());  // else: taken with the next batch
+        });
     serial_ = serial.get();
     source_ = std::move(serial);
+    serial_ready_ = true;
     updater_.reset(new diagnostic_updater::Updater(nh_, pnh_, pnh_.getNamespace()));
     updater_->setHardwareID("serial_lines " + options_.serial_lines.port);
     updater_->add("serial_lines", [this](diagnostic_updater::DiagnosticStatusWrapper& status) {
@@ -111,6 +117,8 @@ AccelerometerNode::AccelerometerNode(ros::NodeHandle nh, ros::NodeHandle pnh,
              nh_.resolveName(names::kImuTopic).c_str());
     return;
   }
+  timer_ =
+      nh_.createTimer(ros::Duration(1.0 / options_.poll_hz), &AccelerometerNode::on_timer, this);
   auto simulated = std::make_unique<SimulatedAccelerometer>(
       options_.simulated, [this](double t_s, Eigen::Matrix3d* R) { return lookup(t_s, R); });
   simulated_ = simulated.get();
@@ -128,6 +136,11 @@ AccelerometerNode::AccelerometerNode(ros::NodeHandle nh, ros::NodeHandle pnh,
       source_->name().c_str(), options_.simulated.rate_hz, options_.simulated.noise_std(),
       nh_.resolveName(names::kTfTopic).c_str(), options_.world_frame.c_str(),
       options_.frame_id.c_str());
+}
+
+AccelerometerNode::~AccelerometerNode() {
+  // First: the serial reader thread publishes through this object's members.
+  source_.reset();
 }
 
 void AccelerometerNode::on_tf(const tf2_msgs::TFMessage::ConstPtr& msg) {
@@ -225,13 +238,15 @@ void AccelerometerNode::poll(const ros::Time& now) {
 void AccelerometerNode::on_timer(const ros::TimerEvent&) {
   const ros::Time now = ros::Time::now();
   if (now.isZero()) return;
-  poll(now);
-  if (serial_) {
-    const SerialLinesStatus status = serial_->status();
-    log_serial_lines(serial_status_, status, options_.serial_lines);
-    serial_status_ = status;
-    updater_->update();
+  if (!serial_) {
+    poll(now);
+    return;
   }
+  // serial_lines: the reader thread publishes as it reads; here the port's news and diagnostics.
+  const SerialLinesStatus status = serial_->status();
+  log_serial_lines(serial_status_, status, options_.serial_lines);
+  serial_status_ = status;
+  updater_->update();
 }
 
 }  // namespace accel_intrinsics

@@ -32,6 +32,7 @@ SerialLinesOptions load_serial_lines_options(const ros::NodeHandle& pnh) {
     throw ParamError("parameter " + param_name(pnh, "serial_lines/separator") + ": " + e.what());
   }
   read_param(pnh, "serial_lines/reconnect_interval_s", &o.reconnect_interval_s);
+  read_param(pnh, "serial_lines/read_period_s", &o.read_period_s);
   read_param(pnh, "serial_lines/clock/bin_s", &o.clock.bin_s);
   read_param(pnh, "serial_lines/clock/window_s", &o.clock.window_s);
   read_param(pnh, "serial_lines/clock/warmup_s", &o.clock.warmup_s);

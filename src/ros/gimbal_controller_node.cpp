@@ -131,10 +131,13 @@ void GimbalControllerNode::wire_driver_topics() {
     if (joint_command_pubs_.count(topic) == 0)
       joint_command_pubs_[topic] = nh_.advertise<std_msgs::Float64>(topic, 10);
   }
-  // The messages go to the driver as plain calls, at the time they arrive on the node clock.
+  // The messages go to the driver as plain calls, at the time they arrive on the node clock
+  // (JointState: taken at each tick, before the driver's update, at the tick's time).
   if (!topics.joint_states.empty()) {
-    joint_state_sub_ = nh_.subscribe<sensor_msgs::JointState>(
-        topics.joint_states, 100, [this](const sensor_msgs::JointState::ConstPtr& msg) {
+    ros::NodeHandle joint_nh(nh_);
+    joint_nh.setCallbackQueue(&joint_state_queue_);
+    joint_state_sub_ = joint_nh.subscribe<sensor_msgs::JointState>(
+        topics.joint_states, 1000, [this](const sensor_msgs::JointState::ConstPtr& msg) {
           driver_->on_joint_state(ros::Time::now().toSec(), msg->name, msg->position);
         });
   }
@@ -166,6 +169,7 @@ void GimbalControllerNode::on_timer(const ros::TimerEvent&) {
 }
 
 void GimbalControllerNode::tick(const ros::Time& now) {
+  joint_state_queue_.callAvailable();
   carry_out(protocol_->tick(now.toSec()), now);
   publish_tf(now);
   if (updater_) updater_->update();

@@ -39,6 +39,13 @@ class SerialPort {
   // timeout_s (wall clock). False on timeout (a partial line stays buffered). Throws SerialError
   // when the port is lost.
   bool read_line(std::string* line, double timeout_s);
+  // Waits up to timeout_s for input, then reads everything the driver holds (as many lines as
+  // have come, in as few system calls as it takes). False when nothing came. Throws SerialError
+  // when the port is lost. The lines are then taken with next_line().
+  bool read_available(double timeout_s);
+  // The next complete line already received (as read_line), without waiting or a system call;
+  // false when no complete line is buffered. Reuses *line's storage.
+  bool next_line(std::string* line);
   // Drops everything received so far (buffered and pending in the driver).
   void discard_input();
 
@@ -49,6 +56,7 @@ class SerialPort {
   int fd_ = -1;
   std::string path_;
   std::string buffer_;
+  std::size_t start_ = 0;  // buffer_[0, start_) was handed out already
 };
 
 }  // namespace accel_intrinsics

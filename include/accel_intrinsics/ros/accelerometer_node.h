@@ -9,6 +9,7 @@
 #include <tf2_msgs/TFMessage.h>
 #include <tf2_ros/buffer.h>
 
+#include <atomic>
 #include <memory>
 #include <string>
 #include <vector>
@@ -41,9 +42,13 @@ class AccelerometerNode {
  public:
   // Builds the simulated source on this node's tf buffer, or the serial_lines source.
   AccelerometerNode(ros::NodeHandle nh, ros::NodeHandle pnh, const AccelerometerOptions& options);
+  ~AccelerometerNode();  // stops the source (the serial reader) before the members it uses
 
-  // Polls the source for samples up to `now` and publishes them.
+  // Polls the source for samples up to `now` and publishes them (the timer calls it, or for
+  // serial_lines the source's reader thread, as it stamps samples).
   void poll(const ros::Time& now);
+  // serial_lines: how often the node logs the port's changes and updates its diagnostics, Hz.
+  static constexpr double kSerialStatusHz = 10.0;
 
  private:
   void on_tf(const tf2_msgs::TFMessage::ConstPtr& msg);
@@ -57,6 +62,7 @@ class AccelerometerNode {
   std::unique_ptr<AccelerometerSource> source_;
   SimulatedAccelerometer* simulated_ = nullptr;           // source_ when simulated
   SerialLinesAccelerometer* serial_ = nullptr;            // source_ when serial_lines
+  std::atomic<bool> serial_ready_{false};                 // source_ set: the reader may publish
   SerialLinesStatus serial_status_;                       // as last seen (logs what changed)
   std::unique_ptr<diagnostic_updater::Updater> updater_;  // serial_lines only
   ros::Subscriber tf_sub_, command_sub_;

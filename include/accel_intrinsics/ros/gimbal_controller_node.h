@@ -26,6 +26,7 @@
 #pragma once
 
 #include <diagnostic_updater/diagnostic_updater.h>
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_msgs/TFMessage.h>
@@ -132,6 +133,9 @@ class GimbalControllerNode : public GimbalLinks {
   std::unique_ptr<core::GimbalProtocol> protocol_;
   ros::Publisher command_pub_, tf_pub_, progress_pub_;
   std::map<std::string, ros::Publisher> joint_command_pubs_;
+  // JointState messages wait here and go to the driver at each tick (the driver reads them only
+  // in update()): no wake-up of the spinner per message from a 1 kHz joint_state_controller.
+  ros::CallbackQueue joint_state_queue_;
   ros::Subscriber joint_state_sub_, imu_sub_;
   ros::ServiceServer start_srv_, abort_srv_, abort_run_srv_, resume_srv_, continue_srv_;
   ros::Timer timer_;
