@@ -51,9 +51,14 @@ TEST(RecordRunDirectory, TheBagIsInTheRunsDirectory) {
   ros::WallDuration(0.5).sleep();
   // Before the run: the bag waits in output_dir, no run directory yet.
   bool recording = false;
-  for (const std::string& name : entries(online_dir))
-    recording = recording || name.rfind(".recording-", 0) == 0;
+  const ros::WallTime opened_by = ros::WallTime::now() + ros::WallDuration(10.0);
+  while (!recording && ros::WallTime::now() < opened_by) {
+    for (const std::string& name : entries(online_dir))
+      recording = recording || name.rfind(".recording-", 0) == 0;
+    if (!recording) ros::WallDuration(0.2).sleep();
+  }
   EXPECT_TRUE(recording) << "no .recording-*.bag in " << online_dir;
+  EXPECT_FALSE(oc::file_exists(online_dir + "/unnamed")) << "a run directory before the run";
 
   std_srvs::Trigger start;
   ASSERT_TRUE(ros::service::call("/gimbal_controller/start", start));

@@ -101,6 +101,7 @@ struct MoveEdges {
   double start_gap_s = 0.0;         // median over moves: motion start (edge share reached) - MOVING
   double end_gap_s = 0.0;           // median over moves: SETTLED - motion end (1 - edge share left)
   double start_gap_spread_s = 0.0;  // median absolute deviation of the start gaps
+  double duration_s = 0.0;          // median over moves: motion end - motion start
 };
 
 // The motion's edges in each step move's window (the move shifted by `shift`, padded): the first
@@ -108,7 +109,7 @@ struct MoveEdges {
 template <typename IsStep>
 MoveEdges move_edges(const Binned& b, const std::vector<Move>& moves, double shift, double pad,
                      double share, IsStep is_step) {
-  std::vector<double> starts, ends;
+  std::vector<double> starts, ends, durations;
   for (const Move& m : moves) {
     if (!is_step(m)) continue;
     const std::size_t lo = b.boundary_at(m.start_s + shift - pad);
@@ -127,12 +128,14 @@ MoveEdges move_edges(const Binned& b, const std::vector<Move>& moves, double shi
     if (std::isnan(t_start) || std::isnan(t_end)) continue;
     starts.push_back(t_start - m.start_s);
     ends.push_back(m.end_s - t_end);
+    durations.push_back(t_end - t_start);
   }
   MoveEdges e;
   e.moves = starts.size();
   if (starts.empty()) return e;
   e.start_gap_s = median(starts);
   e.end_gap_s = median(ends);
+  e.duration_s = median(durations);
   for (double& s : starts) s = std::abs(s - e.start_gap_s);
   e.start_gap_spread_s = median(starts);
   return e;
@@ -352,12 +355,14 @@ ClockCheckResult ClockCheck::result() const {
     // The motion takes only part of each move (a servo that overshoots and settles, a settle
     // timer, an operator): its middle says nothing, its start does. The gimbal starts turning
     // when it reports MOVING, so the IMU motion's start minus MOVING is the IMU clock's lead.
-    // How fast the motion starts (the edge share is reached a little after it begins) leaves
-    // onset_tolerance_s of doubt. Onsets that scatter between moves (an operator turning by
-    // hand) are no clock: then, as for centred moves, only a shift that takes motion out of the
-    // dwells is named.
+    // How fast the motion starts (the edge share is reached after it begins: 0.4 of the
+    // motion's duration for a raised cosine, once the noise floor is taken off) leaves
+    // max(onset_tolerance_s, onset_duration_share x that duration) of doubt. Onsets that scatter
+    // between moves (an operator turning by hand) are no clock: then, as for centred moves, only a
+    // shift that takes motion out of the dwells is named.
     shift = e.start_gap_s;
-    min_offset = std::max(min_offset, options_.onset_tolerance_s);
+    min_offset = std::max(
+        {min_offset, options_.onset_tolerance_s, options_.onset_duration_share * e.duration_s});
     need_gain = e.start_gap_spread_s > options_.onset_spread_s;
   }
   r.explained_at_offset = explained(shift, pad);

@@ -13,7 +13,8 @@
 //     shift is the offset. When it takes only part of them (a servo that overshoots and settles,
 //     a settle timer, SETTLED reported late), the middle says nothing: the gimbal starts turning
 //     when it reports MOVING, so the offset is the motion's start minus MOVING (median over the
-//     moves), named from onset_tolerance_s up (how quickly a motion starts is not known).
+//     moves), named from max(onset_tolerance_s, onset_duration_share x the motion's duration) up
+//     (how quickly a motion starts is not known).
 // A shift of `min_offset_s` or more is an unsynchronized clock: the run must not be fitted.
 // Smaller lags are the timing-lag analysis' job (raw_stream_analysis.h). A centroid shift, or an
 // onset shift whose onsets scatter between moves by more than onset_spread_s (a head turned by
@@ -60,6 +61,9 @@ struct ClockCheckOptions {
   // a little after the motion begins (about 0.1 of a raised-cosine move), a little before for a
   // sudden start (the motion signal spreads over +-block_s).
   double onset_tolerance_s = 0.15;
+  // ... and from this share of the motion's duration (edge to edge) up: a slow start (raised
+  // cosine) reaches the edge share about 0.4 of that duration after it begins.
+  double onset_duration_share = 0.7;
   // Onsets (start minus MOVING) scattering more than this between moves (median absolute
   // deviation) come from the gimbal, not a clock: then min_gain decides.
   double onset_spread_s = 0.1;
