@@ -68,7 +68,9 @@ TEST(RecordRunDirectory, TheBagIsInTheRunsDirectory) {
   ASSERT_TRUE(oc::wait_for_result("/calibration/get_intrinsics", timeout_s, &online, &message))
       << message;
   ros::WallDuration(1.0).sleep();
-  ASSERT_TRUE(oc::shutdown_node("/recorder"));
+  // What `rosnode kill` does. The answer is not checked: the recorder (rospy) may end before it
+  // answers; the bag below says whether it stopped.
+  oc::shutdown_node("/recorder");
 
   const std::string run = run_dirs::latest(online_dir);
   const std::string bag = run + "/run.bag";
