@@ -3,21 +3,16 @@
 
 #include <algorithm>
 #include <cmath>
-#include <iomanip>
-#include <sstream>
 
 #include "accel_intrinsics/core/model/constants.h"
 #include "accel_intrinsics/core/model/gimbal_kinematics.h"
+#include "accel_intrinsics/core/model/text_format.h"
 
 namespace accel_intrinsics {
 
 namespace {
 
-std::string fixed(double v, int precision) {
-  std::ostringstream s;
-  s << std::fixed << std::setprecision(precision) << v;
-  return s.str();
-}
+using core::fixed;
 
 double wrap_2pi(double a) {
   a = std::fmod(a, 2.0 * core::kPi);

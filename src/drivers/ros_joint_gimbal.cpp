@@ -3,20 +3,15 @@
 
 #include <algorithm>
 #include <cmath>
-#include <iomanip>
-#include <sstream>
 
 #include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/model/text_format.h"
 
 namespace accel_intrinsics {
 
 namespace {
 
-std::string fixed(double v, int precision) {
-  std::ostringstream s;
-  s << std::fixed << std::setprecision(precision) << v;
-  return s.str();
-}
+using core::fixed;
 
 bool positive(double v) {
   return std::isfinite(v) && v > 0.0;

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "accel_intrinsics/core/model/text_format.h"
 namespace accel_intrinsics {
 namespace io {
 namespace {
@@ -12,15 +13,7 @@ int decimals_for(double u) {
   return 1 - static_cast<int>(std::floor(std::log10(std::abs(u))));
 }
 
-// x rounded to d decimal places (d < 0: to tens, hundreds...), printed with max(d, 0) decimals.
-std::string fixed(double x, int d) {
-  const double scale = std::pow(10.0, d);
-  double rounded = std::round(x * scale) / scale;
-  if (rounded == 0.0) rounded = 0.0;  // no "-0.000"
-  char buffer[64];
-  std::snprintf(buffer, sizeof(buffer), "%.*f", d > 0 ? d : 0, rounded);
-  return buffer;
-}
+using core::fixed;  // x rounded to d decimal places (d < 0: to tens, hundreds...)
 
 std::string significant(double x, int digits) {
   char buffer[64];

@@ -51,6 +51,7 @@ CalibrationNode::CalibrationNode(ros::NodeHandle nh, ros::NodeHandle pnh,
   status_pub_ =
       nh_.advertise<diagnostic_msgs::DiagnosticStatus>(names::kCalibrationStatusTopic, 1, true);
   analysis_pub_ = nh_.advertise<std_msgs::String>(names::kAnalysisTopic, 1, true);
+  run_directory_pub_ = nh_.advertise<std_msgs::String>(names::kRunDirectoryTopic, 10);
   dwell_pub_ = advertise_dwells(nh_);
   get_srv_ =
       nh_.advertiseService(names::kGetIntrinsicsService, &CalibrationNode::on_get_intrinsics, this);
@@ -279,6 +280,7 @@ void CalibrationNode::carry_out(const core::RunActions& actions,
             files_ = io::CheckpointFiles("", options_.file_prefix);
             new_run_pending_ = true;
           }
+          mount_check_run_ = false;
           result_ = IntrinsicResult();
           ++resets_;
           std::lock_guard<std::mutex> job_lock(job_mutex_);
@@ -382,7 +384,15 @@ io::ResultContext CalibrationNode::result_context(const ros::Time& stamp) const 
 }
 
 void CalibrationNode::ensure_run_directory() {
-  if (!new_run_pending_) return;
+  if (!new_run_pending_ || mount_check_run_) return;
+  // supervise --check-mount sets ~mount_check while it drives the gimbal: no run directory.
+  bool mount_check = false;
+  pnh_.getParam("mount_check", mount_check);
+  if (mount_check) {
+    mount_check_run_ = true;
+    ROS_INFO("calibration: a mount check (~mount_check): no run directory, nothing written");
+    return;
+  }
   // supervise --device sets ~device_serial before it starts a run: read it now.
   std::string serial = options_.device_serial;
   pnh_.getParam("device_serial", serial);
@@ -392,6 +402,9 @@ void CalibrationNode::ensure_run_directory() {
     device_serial_ = serial;
     new_run_pending_ = false;
     ROS_INFO("calibration: device %s: this run writes into %s", serial.c_str(), dir.c_str());
+    std_msgs::String msg;
+    msg.data = dir;
+    run_directory_pub_.publish(msg);
   } catch (const io::IoError& e) {
     ROS_ERROR_THROTTLE(10.0, "calibration: %s", e.what());
   }

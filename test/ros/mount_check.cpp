@@ -3,13 +3,17 @@
 // g * eq. (4) of docs/design.md section 1 (written here) through its own device, with one setup
 // mistake at a time.
 #include <accel_intrinsics/GimbalCommand.h>
+#include <dirent.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cmath>
 #include <mutex>
 #include <random>
+#include <set>
+#include <string>
 
 #include "stand_checks.h"
 
@@ -80,12 +84,43 @@ class TestImu {
 
 TestImu* imu = nullptr;
 
+// The calibration node's runs of the device: the entries of output_dir/unnamed and where its
+// `latest` points.
+struct Runs {
+  std::set<std::string> entries;
+  std::string latest;
+};
+
+Runs runs() {
+  ros::NodeHandle pnh("~");
+  std::string output_dir;
+  pnh.getParam("output_dir", output_dir);
+  Runs r;
+  const std::string device = output_dir + "/unnamed";
+  if (DIR* d = opendir(device.c_str())) {
+    while (const dirent* e = readdir(d)) r.entries.insert(e->d_name);
+    closedir(d);
+  }
+  char target[4096];
+  const ssize_t n = readlink((device + "/latest").c_str(), target, sizeof target - 1);
+  if (n > 0) r.latest.assign(target, static_cast<std::size_t>(n));
+  return r;
+}
+
 stand_checks::CommandResult check(const std::string& extra) {
   ros::NodeHandle pnh("~");
   double timeout_s = 60.0;
   pnh.getParam("timeout_s", timeout_s);
-  return stand_checks::run("rosrun accel_intrinsics supervise --check-mount --timeout " +
-                           std::to_string(timeout_s) + " " + extra);
+  const Runs before = runs();
+  stand_checks::CommandResult r =
+      stand_checks::run("rosrun accel_intrinsics supervise --check-mount --timeout " +
+                        std::to_string(timeout_s) + " " + extra);
+  ros::WallDuration(1.0).sleep();  // the calibration node hears the last dwell and the abort
+  const Runs after = runs();
+  EXPECT_EQ(after.entries, before.entries) << "the mount check left a run directory";
+  EXPECT_EQ(after.latest, before.latest) << "the mount check moved latest";
+  EXPECT_FALSE(ros::param::has("/calibration/mount_check")) << "supervise left ~mount_check";
+  return r;
 }
 
 void wait_for_stand() {

@@ -163,6 +163,10 @@ class CalibrationNode {
   // A new run (start, reset) writes into a new directory, made at its first write.
   bool new_run_pending_ = false;
   std::string device_serial_;  // of the current run's directory
+  // The current run is a mount check (~mount_check true when it would open its directory, set by
+  // supervise --check-mount): it writes nothing and leaves `latest` alone, until the next run.
+  bool mount_check_run_ = false;
+  ros::Publisher run_directory_pub_;  // names::kRunDirectoryTopic
   // Makes the new run's directory when one is pending (files_ then writes there).
   void ensure_run_directory();
   io::ResultContext result_context(const ros::Time& stamp) const;

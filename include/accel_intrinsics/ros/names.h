@@ -26,6 +26,9 @@ constexpr char kCalibrationStatusTopic[] = "calibration/status";
 constexpr char kClockTopic[] = "/clock";
 // std_msgs/String, latched: the JSON of io::analysis_json_text() after an analysis (issue 5).
 constexpr char kAnalysisTopic[] = "calibration/analysis";
+// std_msgs/String, not latched: the directory a run writes into, published when the calibration
+// node opens it (record.launch's recorder moves its bag there).
+constexpr char kRunDirectoryTopic[] = "calibration/run_directory";
 // std_srvs/Trigger: run the analysis on the current position table.
 constexpr char kAnalyzeService[] = "calibration/analyze";
 // accel_intrinsics/ResumeAt: continue the protocol at (phase, step, approach), or after it.

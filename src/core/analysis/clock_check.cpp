@@ -113,6 +113,56 @@ struct Binned {
   }
 };
 
+double median(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+struct MoveEdges {
+  std::size_t moves = 0;
+  double start_gap_s = 0.0;         // median over moves: motion start (edge share reached) - MOVING
+  double end_gap_s = 0.0;           // median over moves: SETTLED - motion end (1 - edge share left)
+  double start_gap_spread_s = 0.0;  // median absolute deviation of the start gaps
+  double duration_s = 0.0;          // median over moves: motion end - motion start
+};
+
+// The motion's edges in each step move's window (the move shifted by `shift`, padded): the first
+// bin boundary where `share` of the window's motion has passed, and the first where 1 - share has.
+template <typename IsStep>
+MoveEdges move_edges(const Binned& b, const std::vector<Move>& moves, double shift, double pad,
+                     double share, IsStep is_step) {
+  std::vector<double> starts, ends, durations;
+  for (const Move& m : moves) {
+    if (!is_step(m)) continue;
+    const std::size_t lo = b.boundary_at(m.start_s + shift - pad);
+    const std::size_t hi = std::min(b.size, b.boundary_at(m.end_s + shift + pad));
+    double weight = 0.0;
+    for (std::size_t k = lo; k <= hi; ++k) weight += b.motion[k];
+    if (!(weight > 0.0)) continue;
+    double passed = 0.0;
+    double t_start = std::nan(""), t_end = std::nan("");
+    for (std::size_t k = lo; k <= hi; ++k) {
+      passed += b.motion[k];
+      const double t = b.origin_s + static_cast<double>(k) * b.bin_s;
+      if (std::isnan(t_start) && passed >= share * weight) t_start = t;
+      if (std::isnan(t_end) && passed >= (1.0 - share) * weight) t_end = t;
+    }
+    if (std::isnan(t_start) || std::isnan(t_end)) continue;
+    starts.push_back(t_start - m.start_s);
+    ends.push_back(m.end_s - t_end);
+    durations.push_back(t_end - t_start);
+  }
+  MoveEdges e;
+  e.moves = starts.size();
+  if (starts.empty()) return e;
+  e.start_gap_s = median(starts);
+  e.end_gap_s = median(ends);
+  e.duration_s = median(durations);
+  for (double& s : starts) s = std::abs(s - e.start_gap_s);
+  e.start_gap_spread_s = median(starts);
+  return e;
+}
+
 }  // namespace
 
 ClockCheckResult ClockCheck::result() const {
@@ -315,15 +365,39 @@ ClockCheckResult ClockCheck::result() const {
       best_shift = shift;
     }
   }
-  r.explained_at_offset = explained(best_shift, pad);
-  r.offset_s = best_shift;
+  // Step 3 (fine): where the motion starts and ends inside each step move, found with the
+  // windows at the centroid's shift (which holds each move's motion whatever its profile).
+  const MoveEdges e = move_edges(b, moves, best_shift, pad, options_.edge_share, is_step);
+  r.start_gap_s = e.start_gap_s;
+  r.end_gap_s = e.end_gap_s;
+  const double mean_gap = 0.5 * (e.start_gap_s + e.end_gap_s);  // the same at every shift
+  r.motion_fills_moves = e.moves == 0 || mean_gap <= options_.fill_share * typical_move;
+  double shift = best_shift;
+  double min_offset = options_.min_offset_s;
+  bool need_gain = true;
+  if (!r.motion_fills_moves) {
+    // The motion takes only part of each move (a servo that overshoots and settles, a settle
+    // timer, an operator): its middle says nothing, its start does. The gimbal starts turning
+    // when it reports MOVING, so the IMU motion's start minus MOVING is the IMU clock's lead.
+    // How fast the motion starts (the edge share is reached after it begins: 0.4 of the
+    // motion's duration for a raised cosine, once the noise floor is taken off) leaves
+    // max(onset_tolerance_s, onset_duration_share x that duration) of doubt. Onsets that scatter
+    // between moves (an operator turning by hand) are no clock: then, as for centred moves, only a
+    // shift that takes motion out of the dwells is named.
+    shift = e.start_gap_s;
+    min_offset = std::max(
+        {min_offset, options_.onset_tolerance_s, options_.onset_duration_share * e.duration_s});
+    need_gain = e.start_gap_spread_s > options_.onset_spread_s;
+  }
+  r.explained_at_offset = explained(shift, pad);
+  r.offset_s = shift;
+  r.best_shift_s = shift;
   // The shift must also put more of the motion inside the step moves themselves (unpadded): a
   // centroid off the middle of moves that already hold all the motion is no evidence of another
   // clock (a gimbal that reports SETTLED a settle time after it stopped), and leaves the dwells
   // free of motion.
-  r.best_shift_s = best_shift;
-  r.gain = explained(best_shift, 0.0, true) - explained(0.0, 0.0, true);
-  r.offset_found = std::abs(best_shift) >= options_.min_offset_s && r.gain >= options_.min_gain;
+  r.gain = explained(shift, 0.0, true) - explained(0.0, 0.0, true);
+  r.offset_found = std::abs(shift) >= min_offset && (!need_gain || r.gain >= options_.min_gain);
   if (!r.offset_found) r.offset_s = 0.0;
   return r;
 }

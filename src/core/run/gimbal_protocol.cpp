@@ -5,18 +5,11 @@
 #include <cmath>
 #include <sstream>
 
+#include "accel_intrinsics/core/model/text_format.h"
 namespace accel_intrinsics {
 namespace core {
 
 namespace {
-
-std::string fixed(double v, int precision) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(precision);
-  s << v;
-  return s.str();
-}
 
 ProtocolAction log_action(ProtocolAction::Level level, const std::string& text) {
   ProtocolAction a;

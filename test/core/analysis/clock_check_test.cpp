@@ -49,6 +49,8 @@ TEST(ClockCheck, SynchronizedStreamsPass) {
     ASSERT_TRUE(r.checked) << r.not_checked_why;
     EXPECT_FALSE(r.offset_found) << "seed " << seed << ": " << r.message("--imu-time-offset");
     EXPECT_GT(r.explained_at_zero, 0.9) << "seed " << seed;
+    EXPECT_TRUE(r.motion_fills_moves)
+        << "seed " << seed << ": start gap " << r.start_gap_s << " end gap " << r.end_gap_s;
   }
 }
 
@@ -80,7 +82,9 @@ TEST(ClockCheck, OffsetsFromATenthToAHundredSecondsAreFound) {
 TEST(ClockCheck, GimbalThatReportsSettledLatePasses) {
   // SETTLED 0.8 s after the motion ends (a settle timer as long as the move), moves of 0.8 s:
   // the motion's centroid sits 0.4 s before the middle of each MOVING -> SETTLED interval, but
-  // all of it lies inside, and the dwells hold none.
+  // all of it lies inside, and the dwells hold none. The motion does not fill the moves, so the
+  // shift is read from where it starts: at MOVING, found late by the raised cosine's slow start
+  // (its first 2 % above the noise floor: 0.18 s), below 0.7 of the motion's duration.
   for (std::uint64_t seed = 40; seed < 46; ++seed) {
     Recording rec = simulate_recording(stand(seed));
     for (GimbalEvent& c : rec.commands) {
@@ -89,7 +93,8 @@ TEST(ClockCheck, GimbalThatReportsSettledLatePasses) {
     const ClockCheckResult r = check(rec, 0.0);
     ASSERT_TRUE(r.checked) << r.not_checked_why;
     EXPECT_FALSE(r.offset_found) << r.message("--imu-time-offset");
-    EXPECT_NEAR(r.best_shift_s, -0.4, 0.05);
+    EXPECT_FALSE(r.motion_fills_moves);
+    EXPECT_NEAR(r.best_shift_s, 0.0, 0.25);
   }
 }
 

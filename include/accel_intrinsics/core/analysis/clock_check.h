@@ -6,12 +6,19 @@
 //     the streams overlap; periodic moves make shifts by whole steps almost as good);
 //  2. among those, the one whose dwell means fit the rig model best (a shift by a step assigns
 //     every dwell the wrong angle);
-//  3. fine: the median, over the moves of a phase, of the motion's centroid minus the move's
-//     midpoint (motion profiles are symmetric: raised cosine, trapezoid).
+//  3. fine: the median, over the step moves, of the motion's centroid minus the move's midpoint;
+//     then the motion's edges in each move (where `edge_share` of it has passed, and where
+//     1 - edge_share has). When the motion fills the moves (its start as far after MOVING as its
+//     end before SETTLED, within fill_share of a move: raised cosine, trapezoid), the centroid
+//     shift is the offset. When it takes only part of them (a servo that overshoots and settles,
+//     a settle timer, SETTLED reported late), the middle says nothing: the gimbal starts turning
+//     when it reports MOVING, so the offset is the motion's start minus MOVING (median over the
+//     moves), named from max(onset_tolerance_s, onset_duration_share x the motion's duration) up
+//     (how quickly a motion starts is not known).
 // A shift of `min_offset_s` or more is an unsynchronized clock: the run must not be fitted.
-// Smaller lags are the timing-lag analysis' job (raw_stream_analysis.h). A gimbal that reports
-// SETTLED long after it stopped moving biases step 3 by half that delay; such a shift is not
-// reported, since it moves no motion out of the dwells (min_gain).
+// Smaller lags are the timing-lag analysis' job (raw_stream_analysis.h). A centroid shift, or an
+// onset shift whose onsets scatter between moves by more than onset_spread_s (a head turned by
+// hand), is reported only if it moves motion out of the dwells (min_gain).
 //
 // Memory: one bin (32 bytes) per `bin_s` of IMU time (100 per second by default, 3.2 kB per second
 // of the run), whatever the IMU rate, in chunks of kChunkBins consecutive bins: a stream that
@@ -47,6 +54,21 @@ struct ClockCheckOptions {
   double min_gain = 0.01;
   // Coarse shifts explaining at least (1 - alias_tolerance) x the best are compared by fit.
   double alias_tolerance = 0.1;
+  // The motion's edges in a move: where this share of its motion has passed (and 1 - this).
+  double edge_share = 0.02;
+  // The motion fills the moves when its mean gap to MOVING and to SETTLED is at most this share
+  // of the typical step move; else the offset is taken from where the motion starts.
+  double fill_share = 0.2;
+  // An offset found from the motion's start is named from this size up: the edge share is reached
+  // a little after the motion begins (about 0.1 of a raised-cosine move), a little before for a
+  // sudden start (the motion signal spreads over +-block_s).
+  double onset_tolerance_s = 0.15;
+  // ... and from this share of the motion's duration (edge to edge) up: a slow start (raised
+  // cosine) reaches the edge share about 0.4 of that duration after it begins.
+  double onset_duration_share = 0.7;
+  // Onsets (start minus MOVING) scattering more than this between moves (median absolute
+  // deviation) come from the gimbal, not a clock: then min_gain decides.
+  double onset_spread_s = 0.1;
   // Longest stretch of IMU time summarized (bins beyond it are not allocated): a guard against a
   // stream that jumps between epochs.
   double max_span_s = 2.0e5;
@@ -63,6 +85,10 @@ struct ClockCheckResult {
   double explained_at_offset = 0.0;
   double best_shift_s = 0.0;  // the shift found, also when too small to matter
   double gain = 0.0;          // motion share gained inside the unpadded moves by that shift
+  // Step 3's edges (medians over the step moves, on the gimbal's clock + the IMU's offset):
+  double start_gap_s = 0.0;         // motion start minus MOVING
+  double end_gap_s = 0.0;           // SETTLED minus motion end
+  bool motion_fills_moves = false;  // the centroid shift was used, else the start's
   // When offset_found: "IMU stamps are 5.00 s later than the gimbal's: clocks not synchronized;
   // pass <fix_option> -5.00" (fix_option given to message()).
   std::string message(const std::string& fix_option) const;
