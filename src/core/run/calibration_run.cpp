@@ -20,12 +20,12 @@ void CalibrationRun::apply(RunEvent event) {
   if (t == nullptr) return;  // ignored in this state (run_transition_table())
   if (!t->collecting) {
     state_ = t->to;
-  } else if (done_pending_ || fitting_) {
+  } else if (done_stamp_s_ || fitting_) {
     state_ = RunState::Fitting;  // a DONE waits for its window, or a fit still runs
   } else if (commands_in_run_ == 0) {
     state_ = RunState::Idle;
   } else {
-    state_ = live_in_dwell_ ? RunState::Dwelling : RunState::Running;
+    state_ = live_dwell_ ? RunState::Dwelling : RunState::Running;
   }
 }
 
@@ -134,10 +134,10 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
   ++commands_in_run_;
   const bool run_start =
       event.state == GimbalState::Moving && event.phase == Phase::X && event.step == 0;
-  if (resume_pending_) {
+  if (restored_next_ == Restored::Resume) {
     // First command after a restart from a checkpoint: a fresh run, or the one to continue.
     if (run_start) {
-      resume_pending_ = false;
+      restored_next_ = Restored::None;
       log(RunAction::Level::Warn, "a new run starts; the checkpoint of " +
                                       std::to_string(table_.rows.size()) + " dwells is discarded");
       for (RunAction& a : reset("a new run starts over the checkpoint")) {
@@ -148,13 +148,13 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
       begin_resume("calibration node restarted from its checkpoint");
     }
   }
-  const bool previous_run_over = done_pending_ || assembler_.done() || has_result() || fitting_ ||
+  const bool previous_run_over = done_stamp_s_ || assembler_.done() || has_result() || fitting_ ||
                                  !fit_error_.empty() || !fault_.empty();
   if (run_start && previous_run_over && !rewind_pending()) {
-    if (done_pending_ && fault_.empty()) {
+    if (done_stamp_s_ && fault_.empty()) {
       // The previous run's DONE is still in the reorder window: finish it first.
       accept_rows(assembler_.flush());
-      done_pending_ = false;
+      done_stamp_s_.reset();
       emit_fit();
     }
     // The previous run's fit (just handed out, or still running) goes out all the same.
@@ -171,12 +171,14 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
   }
   steps_seen_ = event.steps;
   if (event.state != GimbalState::Done) {  // a DONE of an abort names the position it ended
-    have_last_event_ = true;
     last_event_ = event;
   }
   // Live view (arrival order) for the IMU watchdog, and the announced dwells (stamp order).
-  live_in_dwell_ = event.state == GimbalState::Settled;
-  if (live_in_dwell_) live_dwell_ = event;
+  if (event.state == GimbalState::Settled) {
+    live_dwell_ = event;
+  } else {
+    live_dwell_.reset();
+  }
   if (!announced_.empty() && !std::isfinite(announced_.back().end_s)) {
     announced_.back().end_s = event.stamp_s;
   }
@@ -200,7 +202,6 @@ RunActions CalibrationRun::on_command(const GimbalEvent& event) {
   }
   accept_rows(source_.add_command(event));
   if (event.state == GimbalState::Done) {
-    done_pending_ = true;
     done_stamp_s_ = event.stamp_s;
     log(RunAction::Level::Info, "DONE received, fitting after the reorder window");
     apply(RunEvent::DoneReceived);
@@ -239,7 +240,7 @@ RunActions CalibrationRun::on_controller_state(const std::string& state,
   // (respawned after a crash). The run it drove is still open here: continue it (at tick()).
   const bool was_running = controller_state_ == "MOVING" || controller_state_ == "SETTLED" ||
                            controller_state_ == "REMOUNT" || controller_state_ == "WAIT_OPERATOR";
-  if (state == "IDLE" && was_running && !done_pending_ && !assembler_.done() && !has_result() &&
+  if (state == "IDLE" && was_running && !done_stamp_s_ && !assembler_.done() && !has_result() &&
       fault_.empty() && controller_abort_.empty()) {
     controller_restarted_ = true;
     log(RunAction::Level::Warn, "the gimbal controller restarted in the middle of the run");
@@ -250,19 +251,20 @@ RunActions CalibrationRun::on_controller_state(const std::string& state,
     const std::size_t colon = message.find(": ");
     const std::string reason = colon == std::string::npos ? message : message.substr(colon + 2);
     const bool ours = !fault_.empty() || pending_ == Pending::Abort;  // we asked for it
-    if (reason != controller_abort_ && !ours && options_.retry_on_fault && have_last_event_ &&
-        !controller_fault_pending_ && !has_result() && !rewind_pending() && !fitting_) {
+    if (reason != controller_abort_ && !ours && options_.retry_on_fault && last_event_ &&
+        !controller_fault_ && !has_result() && !rewind_pending() && !fitting_) {
       // A fault of the gimbal itself at the position of the latest command: measure it again
       // (at tick(), after the reorder window, so that the dwells before it are complete).
-      controller_fault_pending_ = true;
-      controller_fault_.reason = "the gimbal controller aborted: " + reason;
-      controller_fault_.phase = last_event_.phase;
-      controller_fault_.step = last_event_.step;
-      controller_fault_.in_dwell = last_event_.state == GimbalState::Settled;
-      controller_fault_.stamp_s = last_event_.stamp_s;
-      log(RunAction::Level::Warn, controller_fault_.reason);
+      ControllerFault f;
+      f.reason = "the gimbal controller aborted: " + reason;
+      f.phase = last_event_->phase;
+      f.step = last_event_->step;
+      f.in_dwell = last_event_->state == GimbalState::Settled;
+      f.stamp_s = last_event_->stamp_s;
+      controller_fault_ = f;
+      log(RunAction::Level::Warn, f.reason);
       apply(RunEvent::ControllerFault);
-    } else if (reason != controller_abort_ && !controller_fault_pending_) {
+    } else if (reason != controller_abort_ && !controller_fault_) {
       controller_abort_ = reason;
       if (fault_.empty()) log(RunAction::Level::Error, "the gimbal controller aborted: " + reason);
     }
@@ -274,14 +276,14 @@ RunActions CalibrationRun::on_controller_state(const std::string& state,
 }
 
 RunActions CalibrationRun::on_streams_idle() {
-  if (!done_pending_) return take_actions();
+  if (!done_stamp_s_) return take_actions();
   log(RunAction::Level::Info, "no messages or clock ticks since DONE: fitting now");
-  return tick(done_stamp_s_ + options_.assembler.reorder_window_s);
+  return tick(*done_stamp_s_ + options_.assembler.reorder_window_s);
 }
 
 void CalibrationRun::retry_controller_fault() {
-  controller_fault_pending_ = false;
-  const ControllerFault f = controller_fault_;
+  const ControllerFault f = *controller_fault_;
+  controller_fault_.reset();
   // Everything before the faulted position is complete: its rows go to the table before the
   // assembler restarts. A dwell the fault cut short is measured again (blackout from its
   // SETTLED); after a fault in a move, from the MOVING that ended the previous dwell.
@@ -298,8 +300,8 @@ void CalibrationRun::retry_controller_fault() {
 }
 
 RunActions CalibrationRun::tick(double now_s) {
-  if (controller_fault_pending_ &&
-      now_s >= controller_fault_.stamp_s + options_.assembler.reorder_window_s) {
+  if (controller_fault_ &&
+      now_s >= controller_fault_->stamp_s + options_.assembler.reorder_window_s) {
     retry_controller_fault();
   }
   if (controller_restarted_ && !rewind_pending()) {
@@ -307,7 +309,7 @@ RunActions CalibrationRun::tick(double now_s) {
     begin_resume("the gimbal controller restarted mid-run");
   }
   const bool idle_stand = options_.resume_idle_controller && controller_state_ == "IDLE";
-  if (resume_pending_ && (controller_state_ == "DONE" || idle_stand)) {
+  if (restored_next_ == Restored::Resume && (controller_state_ == "DONE" || idle_stand)) {
     // No gimbal command since the restart and the controller finished the protocol meanwhile
     // (this node died in the last dwells): resume after a grace period. An idle controller
     // (a fresh stand over an old checkpoint) is started from here only with
@@ -320,15 +322,15 @@ RunActions CalibrationRun::tick(double now_s) {
                               : "calibration node restarted from its checkpoint");
     }
   }
-  if (restore_done_) {
+  if (restored_next_ == Restored::Fit) {
     // The checkpoint holds a finished run: its result again.
-    restore_done_ = false;
+    restored_next_ = Restored::None;
     emit_fit();
   }
   const double window = options_.assembler.reorder_window_s;
-  if (done_pending_ && now_s >= done_stamp_s_ + window && !controller_fault_pending_) {
+  if (done_stamp_s_ && now_s >= *done_stamp_s_ + window && !controller_fault_) {
     accept_rows(assembler_.flush());
-    done_pending_ = false;
+    done_stamp_s_.reset();
     warn_on_new_drops();
     check_watchdogs(now_s);
     if (aborted()) {
@@ -397,7 +399,7 @@ RunActions CalibrationRun::on_resume_reply(const ControllerRequest& request, boo
     if (!std::isfinite(b.end_s)) b.end_s = moving_stamp_s;
   }
   log(RunAction::Level::Warn, "gimbal controller: " + message);
-  if (!rewind_pending() && !controller_fault_pending_) apply(RunEvent::ResumeConfirmed);
+  if (!rewind_pending() && !controller_fault_) apply(RunEvent::ResumeConfirmed);
   return take_actions();
 }
 
@@ -453,9 +455,11 @@ RunActions CalibrationRun::restore(const PositionTable& table, const CheckpointS
     log(RunAction::Level::Warn, "resume: the checkpointed run was aborted (" + fault_ + ")");
     apply(RunEvent::RestoredAborted);
   } else if (state.done) {
-    restore_done_ = true;
+    restored_next_ = Restored::Fit;
+    apply(RunEvent::RestoredDone);
   } else {
-    resume_pending_ = true;  // rewind the controller when it shows up
+    restored_next_ = Restored::Resume;  // rewind the controller when it shows up
+    apply(RunEvent::RestoredMidRun);
   }
   std::ostringstream s;
   s.precision(17);
@@ -471,7 +475,7 @@ RunActions CalibrationRun::reset(const std::string& reason) {
   clock_check_.reset();
   long_rest_.clear();
   connect_assembler();
-  done_pending_ = false;
+  done_stamp_s_.reset();
   fitting_ = false;
   ++fit_ticket_;  // a fit still running belongs to the discarded run
   fit_error_.clear();
@@ -483,21 +487,20 @@ RunActions CalibrationRun::reset(const std::string& reason) {
   table_ = PositionTable();
   rows_discarded_ = 0;
   restored_ = false;
-  resume_pending_ = false;
+  restored_next_ = Restored::None;
   resume_deadline_s_ = std::numeric_limits<double>::quiet_NaN();
-  restore_done_ = false;
   controller_restarted_ = false;
   blackouts_.clear();
   pending_ = Pending::None;
   request_ = ControllerRequest();
   fault_.clear();
   controller_abort_.clear();
-  controller_fault_pending_ = false;
-  have_last_event_ = false;
+  controller_fault_.reset();
+  last_event_.reset();
   last_fault_.clear();
   retries_.clear();
   retries_total_ = 0;
-  live_in_dwell_ = false;
+  live_dwell_.reset();
   announced_.clear();
   newest_sample_stamp_s_ = -std::numeric_limits<double>::infinity();
   apply(RunEvent::Reset);

@@ -82,7 +82,7 @@ void CalibrationRun::raise_fault(const std::string& what, Phase phase, std::uint
     request_.after = false;
     request_.reason = what;
     request_after_s_ = -std::numeric_limits<double>::infinity();
-    done_pending_ = false;
+    done_stamp_s_.reset();
     restart_assembler();
     apply(RunEvent::FaultRetried);
     return;
@@ -118,7 +118,7 @@ void CalibrationRun::restart_assembler() {
   // protocol measures the long rest again. After that the rest is an accepted row: keep it.
   if (table_.rows.empty()) long_rest_.clear();
   warned_ = AssemblerCounters();
-  live_in_dwell_ = false;
+  live_dwell_.reset();
   announced_.clear();
 }
 
@@ -126,7 +126,7 @@ void CalibrationRun::begin_resume(const std::string& cause) {
   // Have the controller go to the position after the last recorded dwell (or to the first one),
   // and discard everything measured before its MOVING (a dwell cut short, samples taken while
   // nobody drove the gimbal).
-  resume_pending_ = false;
+  if (restored_next_ == Restored::Resume) restored_next_ = Restored::None;
   pending_ = Pending::Resume;
   request_ = ControllerRequest();
   request_after_s_ = -std::numeric_limits<double>::infinity();
@@ -189,12 +189,12 @@ void CalibrationRun::check_watchdogs(double now_s) {
     announced_.erase(announced_.begin());
   }
   // The IMU stream stopped during a dwell.
-  if (options_.imu_timeout_s > 0.0 && live_in_dwell_) {
-    const double dwell_start = live_dwell_.stamp_s;
+  if (options_.imu_timeout_s > 0.0 && live_dwell_) {
+    const double dwell_start = live_dwell_->stamp_s;
     const double silent = now_s - std::max(dwell_start, newest_sample_stamp_s_);
     if (silent > options_.imu_timeout_s && !in_blackout(dwell_start, dwell_start + 1e-9)) {
-      const Phase phase = live_dwell_.phase;
-      const std::uint32_t step = live_dwell_.step;
+      const Phase phase = live_dwell_->phase;
+      const std::uint32_t step = live_dwell_->step;
       const int approach = approach_of_next_row(phase, step);
       std::ostringstream what;
       what.setf(std::ios::fixed);
@@ -202,7 +202,7 @@ void CalibrationRun::check_watchdogs(double now_s) {
       what << "IMU stream stopped: no samples for " << silent << " s during dwell "
            << position_label(phase, step, approach)
            << " (imu_timeout_s = " << options_.imu_timeout_s << ")";
-      live_in_dwell_ = false;
+      live_dwell_.reset();
       // Dwells before this one are complete: process them before the assembler restarts.
       accept_rows(assembler_.flush_until(dwell_start - 1e-9));
       raise_fault(what.str(), phase, step, approach, dwell_start);

@@ -31,8 +31,8 @@ RunStatus CalibrationRun::status(double now_s) const {
   s.restored = restored_;
   s.in_dwell = assembler_.current_dwell(&s.dwell_phase, &s.dwell_step, &s.dwell_samples);
   s.imu_silent =
-      options_.imu_timeout_s > 0.0 && live_in_dwell_ &&
-      now_s - std::max(live_dwell_.stamp_s, newest_sample_stamp_s_) > options_.imu_timeout_s;
+      options_.imu_timeout_s > 0.0 && live_dwell_ &&
+      now_s - std::max(live_dwell_->stamp_s, newest_sample_stamp_s_) > options_.imu_timeout_s;
   s.newest_sample_stamp_s = newest_sample_stamp_s_;
   return s;
 }
@@ -87,7 +87,7 @@ std::string CalibrationRun::missing_message() const {
     s << "; in dwell phase " << phase_name(phase) << " step " << step << " (" << samples
       << " samples)";
   }
-  if (done_pending_) s << "; DONE received, fitting after the reorder window";
+  if (done_stamp_s_) s << "; DONE received, fitting after the reorder window";
   if (fitting_) s << "; fitted, the discrepancy analysis is running (result after it)";
   if (rewind_pending()) s << "; waiting for the gimbal controller to resume";
   if (retries_total_ > 0) s << "; " << retries_total_ << " position(s) measured again";

@@ -24,6 +24,8 @@ const char* run_event_name(RunEvent event) {
   switch (event) {
     case RunEvent::Reset: return "reset";
     case RunEvent::RestoredAborted: return "restored aborted";
+    case RunEvent::RestoredDone: return "restored done";
+    case RunEvent::RestoredMidRun: return "restored mid-run";
     case RunEvent::Moving: return "moving";
     case RunEvent::Settled: return "settled";
     case RunEvent::DoneReceived: return "done received";
@@ -56,6 +58,9 @@ const std::vector<RunTransition>& run_transition_table() {
     const std::initializer_list<S> collecting = {S::Idle, S::Running, S::Dwelling};
     rows(all, E::Reset, S::Idle);
     rows({S::Idle}, E::RestoredAborted, S::Aborted);
+    // Restored to be fitted or resumed: Idle until then (FitStarted, ResumeRequested).
+    rows({S::Idle}, E::RestoredDone, S::Idle);
+    rows({S::Idle}, E::RestoredMidRun, S::Idle);
     // Commands move a collecting run; in the other states they only feed the assembler.
     rows(collecting, E::Moving, S::Running);
     rows(collecting, E::Settled, S::Dwelling);

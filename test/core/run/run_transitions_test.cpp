@@ -114,6 +114,21 @@ struct Driver {
     }
   }
 
+  // A fresh run restored from the checkpoint of another one: complete (it is fitted at the first
+  // tick) or mid-run (one dwell recorded: resumed at the first command). Both wait in Idle.
+  void restore(bool complete) {
+    Driver first;
+    if (complete) {
+      first.reach(S::Done);
+    } else {
+      first.dwell(0, 20);
+      first.command(GimbalState::Moving, 1);
+      first.tick();
+    }
+    t = first.t;
+    take(run.restore(first.run.table(), first.run.checkpoint_state()));
+  }
+
   CalibrationRun run;
   double t = 10.0;
   std::uint64_t ticket = 0;
@@ -258,23 +273,38 @@ TEST(RunTransitions, TableHasOneRowPerPairAndResetLeavesEveryState) {
   }
 }
 
+// Where the walk starts: every state, and Idle with a restored run's follow-up pending.
+struct Start {
+  std::string name;
+  S state;
+  std::function<void(Driver&)> reach;
+};
+std::vector<Start> starts() {
+  std::vector<Start> list;
+  for (S s : kStates) list.push_back({run_state_name(s), s, [s](Driver& d) { d.reach(s); }});
+  list.push_back({"idle (restored done)", S::Idle, [](Driver& d) { d.restore(true); }});
+  list.push_back({"idle (restored mid-run)", S::Idle, [](Driver& d) { d.restore(false); }});
+  return list;
+}
+
 TEST(RunTransitions, EveryInputInEveryStateGoesWhereTheTableSays) {
   std::set<std::pair<S, E>> taken;
   // Faults retried, ending the run, and ending it at once (the rewind of a controller fault).
   const std::vector<std::pair<bool, std::uint32_t>> retries = {{true, 10}, {false, 0}, {true, 0}};
   for (const auto& retry : retries) {
-    for (S state : kStates) {
+    for (const Start& start : starts()) {
+      const S state = start.state;
       {
         Driver d(retry.first, retry.second);
-        d.reach(state);
+        start.reach(d);
         if (!retry.first || retry.second == 0) {
           if (d.run.state() != state) continue;  // its recipe needs a retry
         }
-        ASSERT_EQ(d.run.state(), state) << "recipe of " << run_state_name(state);
+        ASSERT_EQ(d.run.state(), state) << "recipe of " << start.name;
       }
       for (const auto& input : inputs()) {
         Driver d(retry.first, retry.second);
-        d.reach(state);
+        start.reach(d);
         const std::vector<E> before = d.run.events();
         input.second(d);
         const std::vector<E>& all = d.run.events();
@@ -282,8 +312,8 @@ TEST(RunTransitions, EveryInputInEveryStateGoesWhereTheTableSays) {
         const bool continued =
             all.size() >= before.size() && std::equal(before.begin(), before.end(), all.begin());
         const std::vector<E> raised(all.begin() + (continued ? before.size() : 0), all.end());
-        expect_table_fold(state, raised, d.run.own_state(),
-                          std::string(run_state_name(state)) + " + " + input.first, &taken);
+        expect_table_fold(state, raised, d.run.own_state(), start.name + " + " + input.first,
+                          &taken);
       }
     }
   }
@@ -291,7 +321,8 @@ TEST(RunTransitions, EveryInputInEveryStateGoesWhereTheTableSays) {
   const std::set<std::pair<S, E>> elsewhere = {
       {S::Idle, E::RestoredAborted},     // RestoreIsRefusedUnlessFreshAndAnAbortedRunStaysAborted
       {S::Fitting, E::DoneDiscarded},    // ControllerAbortShowsOverTheRunAndDoneIsNotFitted
-      {S::Idle, E::FitStarted},          // RestoredCompleteRunIsFittedAtOnce (calibration_run_test)
+      {S::Idle, E::RestoredDone},        // RestoredRunWaitsInIdleForItsFollowUp
+      {S::Idle, E::RestoredMidRun},      // RestoredRunWaitsInIdleForItsFollowUp
       {S::Fitting, E::ClockMismatch},    // ImuOnAnotherClockFailsWithTheOffsetInsteadOfFitting
       {S::Idle, E::ClockMismatch},       // a restored complete run on two clocks, as Fitting's
       {S::FitFailed, E::ClockMismatch},  // a refit after a failed fit on two clocks, as Fitting's
@@ -348,6 +379,81 @@ TEST(RunTransitions, ControllerAbortShowsOverTheRunAndDoneIsNotFitted) {
   // The controller runs again: the run is where its own state says.
   d.take(d.run.on_controller_state("STARTING", ""));
   EXPECT_EQ(d.run.state(), S::Running);
+}
+
+// restore() of a complete or a mid-run checkpoint leaves the run Idle with its follow-up: the
+// first tick fits a complete one; the first command of the controller resumes a mid-run one
+// (and a tick does not fit it); a reset drops either.
+TEST(RunTransitions, RestoredRunWaitsInIdleForItsFollowUp) {
+  std::set<std::pair<S, E>> taken;
+  {
+    Driver d;
+    d.restore(true);
+    EXPECT_EQ(d.run.events().back(), E::RestoredDone);
+    EXPECT_EQ(d.run.state(), S::Idle);
+    EXPECT_EQ(d.ticket, 0u);
+    d.tick();
+    EXPECT_EQ(d.run.events().back(), E::FitStarted);
+    EXPECT_EQ(d.run.state(), S::Fitting);
+    EXPECT_NE(d.ticket, 0u);
+    const std::uint64_t ticket = d.ticket;
+    d.tick();  // fitted once
+    EXPECT_EQ(d.ticket, ticket);
+    d.take(d.run.on_fit_finished(d.ticket, true, ""));
+    EXPECT_EQ(d.run.state(), S::Done);
+  }
+  {
+    Driver d;
+    d.restore(false);
+    EXPECT_EQ(d.run.events().back(), E::RestoredMidRun);
+    EXPECT_EQ(d.run.state(), S::Idle);
+    d.tick();
+    EXPECT_EQ(d.run.state(), S::Idle);
+    EXPECT_EQ(d.ticket, 0u);
+    d.command(GimbalState::Moving, 1);
+    EXPECT_EQ(d.run.state(), S::WaitingForResume);
+    d.take(d.run.tick(d.t));
+    EXPECT_TRUE(d.request.after);  // after the one recorded dwell
+    EXPECT_EQ(d.request.step, 0u);
+  }
+  for (bool complete : {true, false}) {
+    Driver d;
+    d.restore(complete);
+    d.take(d.run.reset("test"));
+    d.tick();
+    EXPECT_EQ(d.ticket, 0u) << complete;
+    d.command(GimbalState::Moving, 1);
+    EXPECT_EQ(d.run.state(), S::Running) << complete;
+  }
+}
+
+// The DONE's window and the shell's fit are the run's data, not sub-states of Fitting: they
+// overlap (a DONE while the fit runs) and outlive it (the fit is published while the window
+// runs; the window then refits under the result).
+TEST(RunTransitions, DoneWindowAndRunningFitOutliveFitting) {
+  Driver d;
+  d.reach(S::Fitting);
+  EXPECT_TRUE(d.run.waiting_after_done());
+  d.tick();  // FitNow handed out
+  const std::uint64_t first = d.ticket;
+  ASSERT_NE(first, 0u);
+  EXPECT_FALSE(d.run.waiting_after_done());
+  d.t += 0.5;
+  d.command(GimbalState::Done, 1);  // DONE again while the fit runs
+  EXPECT_TRUE(d.run.waiting_after_done());
+  EXPECT_EQ(d.run.own_state(), S::Fitting);
+  EXPECT_TRUE(d.run.fit_may_publish(first));
+  d.take(d.run.on_fit_finished(first, true, ""));
+  EXPECT_EQ(d.run.own_state(), S::Done);
+  EXPECT_TRUE(d.run.waiting_after_done());  // the result is out, the window still runs
+  d.tick();
+  EXPECT_FALSE(d.run.waiting_after_done());
+  EXPECT_NE(d.ticket, first);  // fitted again; the result stays meanwhile
+  EXPECT_EQ(d.run.own_state(), S::Done);
+  EXPECT_TRUE(d.run.fit_may_publish(d.ticket));
+  EXPECT_FALSE(d.run.fit_may_publish(first));
+  d.take(d.run.on_fit_finished(d.ticket, false, "too few"));
+  EXPECT_EQ(d.run.own_state(), S::FitFailed);
 }
 
 }  // namespace

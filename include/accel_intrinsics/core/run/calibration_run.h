@@ -137,7 +137,7 @@ class CalibrationRun {
   // clock): after DONE, the reorder window is taken as passed and the run is fitted now.
   RunActions on_streams_idle();
   // DONE came and the run waits for the reorder window to pass in stamp time.
-  bool waiting_after_done() const { return done_pending_; }
+  bool waiting_after_done() const { return done_stamp_s_.has_value(); }
   // The reply to a ResumeAt: `reached` false when the controller could not be called (asked
   // again after request_retry_s); else `success`, its message, and the stamp of its MOVING.
   RunActions on_resume_reply(const ControllerRequest& request, bool reached, bool success,
@@ -198,9 +198,16 @@ class CalibrationRun {
     Phase phase;
     std::uint32_t step;
     double begin_s, end_s;
-    bool recorded;
+    bool recorded;  // data: a row of it was accepted (no fault for a dwell with no sample)
   };
   enum class Pending { None, Resume, Abort };
+  // What a run restored from a checkpoint does next (restore() sets one; the run is Idle then):
+  // one of three exclusive outcomes of restore() (an aborted one is RunState::Aborted).
+  enum class Restored {
+    None,    // not restored, or already carried on
+    Fit,     // the checkpoint says DONE: fit at the first tick
+    Resume,  // restored mid-protocol: rewind at the first command, or once the controller is DONE
+  };
 
   void connect_assembler();
   // The rows an assembler call completed (returned by it, so a fault may restart it).
@@ -240,22 +247,25 @@ class CalibrationRun {
   std::uint32_t steps_seen_ = 0;
   std::uint64_t commands_received_ = 0;
   std::uint64_t commands_rejected_ = 0;
-  bool done_pending_ = false;  // DONE received, waiting for the reorder window
-  double done_stamp_s_ = 0.0;
-  bool fitting_ = false;                     // FitNow handed out, on_fit_finished not yet called
+  // A DONE's stamp while its reorder window runs. Not a sub-state of Fitting: a DONE opens it in
+  // any state (a refit under a result, one while a rewind is pending) and a fit may still run.
+  std::optional<double> done_stamp_s_;
+  // FitNow handed out, on_fit_finished not yet called. Not a sub-state of Fitting: the run moves on
+  // (a retry, an abort, a later DONE) while its shell fits; the ticket decides what comes back.
+  bool fitting_ = false;
   std::uint64_t fit_ticket_ = 0;             // of the latest FitNow
   std::uint64_t superseded_fit_ticket_ = 0;  // final fit of a run a new run replaced
-  bool unreached_warned_ = false;            // "controller not available" said once
+  bool unreached_warned_ = false;            // log throttle: "controller not available" said once
   std::uint64_t commands_in_run_ = 0;
   std::uint64_t run_generation_ = 0;  // bumped by reset()
   RunState state_ = RunState::Idle;
   std::vector<RunEvent> events_;
   std::string fit_error_;
-  bool restored_ = false;
-  bool resume_pending_ = false;  // restored mid-protocol: rewind at the first command or DONE
-  double resume_deadline_s_ = std::numeric_limits<double>::quiet_NaN();
-  bool restore_done_ = false;  // the checkpoint says DONE: fit at the first tick
+  bool restored_ = false;  // status data: the rows came from a checkpoint (kept all run long)
+  Restored restored_next_ = Restored::None;
+  double resume_deadline_s_ = std::numeric_limits<double>::quiet_NaN();  // of Restored::Resume
   std::string controller_state_;
+  // A follow-up for tick(), not a phase: it waits behind a rewind already pending, in any state.
   bool controller_restarted_ = false;
   std::string fault_;             // the run was aborted by a watchdog: why
   std::string controller_abort_;  // the gimbal controller said ABORTED: why
@@ -269,13 +279,13 @@ class CalibrationRun {
   double request_after_s_ = -std::numeric_limits<double>::infinity();
   AssemblerCounters counters_before_;  // of assemblers restarted after a fault
   AssemblerCounters warned_;           // counters at the last warning
-  bool live_in_dwell_ = false;         // arrival order: the latest command is SETTLED
-  GimbalEvent live_dwell_;
+  // Arrival order: the latest command, when it is a SETTLED (the IMU watchdog's dwell). Kept in
+  // every state (commands feed a fitting or rewinding run too); Dwelling is taken from it.
+  std::optional<GimbalEvent> live_dwell_;
   double newest_sample_stamp_s_ = -std::numeric_limits<double>::infinity();
   std::vector<Announced> announced_;
   // The latest gimbal command in arrival order (the position a controller fault belongs to).
-  bool have_last_event_ = false;
-  GimbalEvent last_event_;
+  std::optional<GimbalEvent> last_event_;
   // A controller fault to be retried at tick() once the reorder window has passed.
   struct ControllerFault {
     std::string reason;
@@ -284,8 +294,7 @@ class CalibrationRun {
     bool in_dwell = false;  // the fault came during the dwell (it is measured again)
     double stamp_s = 0.0;   // of the position's latest command
   };
-  bool controller_fault_pending_ = false;
-  ControllerFault controller_fault_;
+  std::optional<ControllerFault> controller_fault_;
   void retry_controller_fault();
 };
 

@@ -8,7 +8,8 @@ namespace accel_intrinsics {
 namespace core {
 
 enum class RunState {
-  Idle,              // no gimbal command yet (or since a reset)
+  Idle,              // no gimbal command yet (or since a reset); a run restored from a checkpoint
+                     // waits here to be fitted (complete) or resumed (mid-run) by its follow-up
   Running,           // the protocol runs; the gimbal moves between dwells
   Dwelling,          // inside a dwell (latest command: SETTLED)
   WaitingForResume,  // a position is to be measured again, or a restart resumed: the controller
@@ -25,6 +26,8 @@ const char* run_state_name(RunState state);
 enum class RunEvent {
   Reset,            // reset(): discarded (also when a new run starts)
   RestoredAborted,  // restore() of a checkpoint whose run was aborted
+  RestoredDone,     // restore() of a complete run: fitted at the first tick (FitStarted)
+  RestoredMidRun,   // restore() mid-protocol: resumed at the first command or a DONE controller
   Moving,           // a gimbal MOVING (or a DONE the run ignores: inside a blackout)
   Settled,          // a gimbal SETTLED: a dwell begins
   DoneReceived,     // a gimbal DONE the run takes: fit once the reorder window has passed
