@@ -7,7 +7,9 @@
 // measurements it calls gimbal_controller/start, so the protocol runs (moves, arrivals, tf) while
 // the controller's CPU share is read from /proc/PID/stat over each period. Prints both shares,
 // their difference (what handling the JointState messages at --rate costs) and the moves the
-// controller commanded (the protocol ran).
+// controller commanded (the protocol ran). With --reference-pid (bench/joint_state_sink, a
+// subscriber that does nothing) the same shares of that process are printed: what roscpp costs
+// any node to receive the stream, the floor under the controller's.
 //
 //   rosparam load config/ros_joint_gimbal.yaml /gimbal_controller
 //   rosrun accel_intrinsics gimbal_controller _driver:=ros_joint &
@@ -48,7 +50,8 @@ void on_inner_command(const std_msgs::Float64::ConstPtr& m) {
 
 int usage() {
   std::fprintf(stderr,
-               "usage: ros_joint_load --pid PID [--rate HZ] [--baseline-rate HZ] [--seconds S]\n");
+               "usage: ros_joint_load --pid PID [--reference-pid PID] [--rate HZ] "
+               "[--baseline-rate HZ] [--seconds S]\n");
   return 2;
 }
 
@@ -56,12 +59,14 @@ int usage() {
 
 int main(int argc, char** argv) {
   ros::init(argc, argv, "ros_joint_load", ros::init_options::AnonymousName);
-  int pid = 0;
+  int pid = 0, reference_pid = 0;
   double rate_hz = 1000.0, baseline_hz = 10.0, seconds = 20.0;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
     if (key == "--pid")
       pid = std::atoi(argv[i + 1]);
+    else if (key == "--reference-pid")
+      reference_pid = std::atoi(argv[i + 1]);
     else if (key == "--rate")
       rate_hz = std::atof(argv[i + 1]);
     else if (key == "--baseline-rate")
@@ -116,7 +121,8 @@ int main(int argc, char** argv) {
 
   // Until the controller subscribes (and its start service is there), at the baseline rate.
   const Clock::time_point give_up = Clock::now() + std::chrono::seconds(20);
-  while (pub.getNumSubscribers() == 0 || !ros::service::exists("gimbal_controller/start", false)) {
+  const std::uint32_t subscribers = reference_pid > 0 ? 2 : 1;
+  while (pub.getNumSubscribers() < subscribers || !ros::service::exists("gimbal_controller/start", false)) {
     if (Clock::now() > give_up) {
       std::fprintf(stderr, "ros_joint_load: no gimbal_controller subscribed within 20 s\n");
       return 1;
@@ -132,24 +138,31 @@ int main(int argc, char** argv) {
   }
   publish_for(baseline_hz, 1.0);  // past the start delay, into the protocol
 
-  auto measure = [&](double rate, double* cpu_pct, double* achieved_hz) {
+  auto measure = [&](double rate, double* cpu_pct, double* achieved_hz, double* reference_pct) {
     const std::uint64_t commands0 = commands.load();
+    const double ref0 = reference_pid > 0 ? bench::cpu_seconds(reference_pid) : 0.0;
     const double cpu0 = bench::cpu_seconds(pid);
     const Clock::time_point t0 = Clock::now();
     const std::uint64_t sent = publish_for(rate, seconds);
     const double cpu1 = bench::cpu_seconds(pid);
+    const double ref1 = reference_pid > 0 ? bench::cpu_seconds(reference_pid) : 0.0;
     const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
     *cpu_pct = 100.0 * (cpu1 - cpu0) / wall;
+    *reference_pct = 100.0 * (ref1 - ref0) / wall;
     *achieved_hz = sent / wall;
     std::printf(
         "at %.0f Hz: sent %llu JointState messages in %.2f s (%.0f msgs/s), "
         "%llu commands back; CPU %.2f %% of one core\n",
         rate, static_cast<unsigned long long>(sent), wall, *achieved_hz,
         static_cast<unsigned long long>(commands.load() - commands0), *cpu_pct);
-    return cpu0 >= 0 && cpu1 >= 0;
+    if (reference_pid > 0)
+      std::printf("at %.0f Hz: reference subscriber CPU %.2f %% of one core\n", rate,
+                  *reference_pct);
+    return cpu0 >= 0 && cpu1 >= 0 && ref0 >= 0 && ref1 >= 0;
   };
-  double base_cpu = 0, base_hz = 0, cpu = 0, hz = 0;
-  const bool ok = measure(baseline_hz, &base_cpu, &base_hz) && measure(rate_hz, &cpu, &hz);
+  double base_cpu = 0, base_hz = 0, cpu = 0, hz = 0, base_ref = 0, ref = 0;
+  const bool ok = measure(baseline_hz, &base_cpu, &base_hz, &base_ref) &&
+                  measure(rate_hz, &cpu, &hz, &ref);
   std::printf(
       "baseline CPU %.2f %%; at rate CPU %.2f %%; JointState handling %.2f %% of one core\n",
       base_cpu, cpu, cpu - base_cpu);

@@ -1,0 +1,18 @@
+// The floor of the ros_joint load row (bench/run ros_joint_load, issue 33): a roscpp node that
+// subscribes to joint_states as the gimbal controller does and does nothing with the messages.
+// Its CPU share at 1 kHz is what roscpp costs any subscriber to receive and deserialize the
+// stream on this machine; the controller's share above it is the ros_joint driver's handling.
+//
+//   rosrun accel_intrinsics joint_state_sink &
+#include <ros/ros.h>
+#include <sensor_msgs/JointState.h>
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "joint_state_sink", ros::init_options::AnonymousName);
+  ros::NodeHandle nh;
+  // The same topic and queue depth as the ros_joint driver's subscription.
+  ros::Subscriber sub = nh.subscribe<sensor_msgs::JointState>(
+      "joint_states", 1000, [](const sensor_msgs::JointState::ConstPtr&) {});
+  ros::spin();
+  return 0;
+}
