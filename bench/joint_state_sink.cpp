@@ -7,12 +7,15 @@
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
 
+namespace {
+void ignore(const sensor_msgs::JointState::ConstPtr&) {}
+}  // namespace
+
 int main(int argc, char** argv) {
   ros::init(argc, argv, "joint_state_sink", ros::init_options::AnonymousName);
   ros::NodeHandle nh;
   // The same topic and queue depth as the ros_joint driver's subscription.
-  ros::Subscriber sub = nh.subscribe<sensor_msgs::JointState>(
-      "joint_states", 1000, [](const sensor_msgs::JointState::ConstPtr&) {});
+  ros::Subscriber sub = nh.subscribe("joint_states", 1000, ignore);
   ros::spin();
   return 0;
 }

@@ -122,7 +122,8 @@ int main(int argc, char** argv) {
   // Until the controller subscribes (and its start service is there), at the baseline rate.
   const Clock::time_point give_up = Clock::now() + std::chrono::seconds(20);
   const std::uint32_t subscribers = reference_pid > 0 ? 2 : 1;
-  while (pub.getNumSubscribers() < subscribers || !ros::service::exists("gimbal_controller/start", false)) {
+  while (pub.getNumSubscribers() < subscribers ||
+         !ros::service::exists("gimbal_controller/start", false)) {
     if (Clock::now() > give_up) {
       std::fprintf(stderr, "ros_joint_load: no gimbal_controller subscribed within 20 s\n");
       return 1;
@@ -161,8 +162,8 @@ int main(int argc, char** argv) {
     return cpu0 >= 0 && cpu1 >= 0 && ref0 >= 0 && ref1 >= 0;
   };
   double base_cpu = 0, base_hz = 0, cpu = 0, hz = 0, base_ref = 0, ref = 0;
-  const bool ok = measure(baseline_hz, &base_cpu, &base_hz, &base_ref) &&
-                  measure(rate_hz, &cpu, &hz, &ref);
+  const bool ok =
+      measure(baseline_hz, &base_cpu, &base_hz, &base_ref) && measure(rate_hz, &cpu, &hz, &ref);
   std::printf(
       "baseline CPU %.2f %%; at rate CPU %.2f %%; JointState handling %.2f %% of one core\n",
       base_cpu, cpu, cpu - base_cpu);
