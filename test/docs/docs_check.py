@@ -23,7 +23,8 @@ PACKAGE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.realpath(__fil
 # belongs to. A nodelet reads its node's parameters. A new file that reads parameters must be
 # added here (the test says so).
 NODE_SOURCES = {
-    "calibration": ["src/ros/calibration_options.cpp", "src/ros/tumble_calibration_node.cpp",
+    "calibration": ["src/ros/calibration_options.cpp", "src/ros/calibration_node.cpp",
+                    "src/ros/tumble_calibration_node.cpp",
                     "src/nodes/calibration.cpp", "src/nodelets/calibration_nodelet.cpp"],
     "gimbal_controller": ["src/ros/gimbal_controller_options.cpp",
                           "src/drivers/gimbal_driver_table.cpp", "src/ros/ros_driver_params.cpp",
@@ -79,7 +80,8 @@ def reads_in_source(text, readers=None):
     """[(name, line)] of the private parameters one source file reads."""
     text = _strip_comments(text)
     readers = readers or {}
-    prefix = {"pnh": "", "nh": "", "getPrivateNodeHandle()": "", 'ros::NodeHandle("~")': ""}
+    prefix = {"pnh": "", "pnh_": "", "nh": "", "getPrivateNodeHandle()": "",
+              'ros::NodeHandle("~")': ""}
     for m in _HANDLE_DECL.finditer(text):
         name, parent, sub = m.group(1), m.group(2), m.group(3)
         if parent is None:
