@@ -1,7 +1,7 @@
-// The floor of the ros_joint load row (bench/run ros_joint_load, issue 33): a roscpp node that
-// subscribes to joint_states as the gimbal controller does and does nothing with the messages.
-// Its CPU share at 1 kHz is what roscpp costs any subscriber to receive and deserialize the
-// stream on this machine; the controller's share above it is the ros_joint driver's handling.
+// A reference for the ros_joint load row (bench/run ros_joint_load, issue 33): a roscpp node that
+// subscribes to joint_states and does nothing with the messages, but is woken for each one by
+// ros::spin. Its CPU share at 1 kHz is what a naive subscriber pays for the stream; the gimbal
+// controller takes the messages from its own queue at each tick instead.
 //
 //   rosrun accel_intrinsics joint_state_sink &
 #include <ros/ros.h>

@@ -8,8 +8,8 @@
 // the controller's CPU share is read from /proc/PID/stat over each period. Prints both shares,
 // their difference (what handling the JointState messages at --rate costs) and the moves the
 // controller commanded (the protocol ran). With --reference-pid (bench/joint_state_sink, a
-// subscriber that does nothing) the same shares of that process are printed: what roscpp costs
-// any node to receive the stream, the floor under the controller's.
+// subscriber that does nothing, woken per message) the same shares of that process are printed:
+// what a naive subscriber pays for the stream.
 //
 //   rosparam load config/ros_joint_gimbal.yaml /gimbal_controller
 //   rosrun accel_intrinsics gimbal_controller _driver:=ros_joint &
