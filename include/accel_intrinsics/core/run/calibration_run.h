@@ -43,6 +43,7 @@
 #include "accel_intrinsics/core/noise/noise.h"
 #include "accel_intrinsics/core/noise/rest_accumulator.h"
 #include "accel_intrinsics/core/run/run_actions.h"
+#include "accel_intrinsics/core/run/run_memory.h"
 #include "accel_intrinsics/core/run/run_transitions.h"
 
 namespace accel_intrinsics {
@@ -99,16 +100,6 @@ struct RunStatus {
   std::uint64_t dwell_samples = 0;  //   and its samples so far
   bool imu_silent = false;          // no samples for imu_timeout_s during a dwell
   double newest_sample_stamp_s = -std::numeric_limits<double>::infinity();
-};
-
-// Bytes a run holds, by part (CalibrationRun::memory()): what grows with the run and what must
-// not grow with a dwell's length or the IMU rate (issue 38; docs/noise.md).
-struct RunMemory {
-  std::size_t assembler = 0;    // reorder buffer (window x rate) and the assembler's table
-  std::size_t long_rest = 0;    // the first dwell's statistics (constant)
-  std::size_t clock_check = 0;  // 32 bytes per 10 ms of IMU time: grows with the run
-  std::size_t moves = 0;        // samples around the moves (record_moves only)
-  std::size_t table = 0;        // accepted rows
 };
 
 class CalibrationRun {
