@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "accel_intrinsics/core/model/text_format.h"
+
 namespace accel_intrinsics {
 namespace io {
 namespace {
