@@ -56,9 +56,12 @@ def main():
                 node = case.find("failure")
                 if node is None:
                     node = case.find("error")
+                # The whole message on one line (location, then the values gtest printed): a
+                # CI log that keeps only this summary still says what went wrong.
                 message = (node.get("message") or node.text or "").strip().splitlines()
+                text = " | ".join(l.strip() for l in message if l.strip())
                 failures.append("%s (%s): %s" % (name, os.path.basename(path),
-                                                 message[0] if message else ""))
+                                                 text[:400] + ("..." if len(text) > 400 else "")))
             else:
                 passed += 1
     for line in failures:
