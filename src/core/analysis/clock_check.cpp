@@ -33,6 +33,11 @@ void ClockCheck::reset() {
   samples_ = 0;
   have_origin_ = false;
   bins_refused_ = 0;
+  total_sum_.setZero();
+  stills_.clear();
+  newest_chunk_ = next_evaluated_chunk_ = 0;
+  still_motion_.clear();
+  all_motion_.clear();
 }
 
 void ClockCheck::add_command(const GimbalEvent& event) {
@@ -44,6 +49,7 @@ void ClockCheck::add_sample(const ImuSample& sample) {
   if (!have_origin_) {
     have_origin_ = true;
     origin_s_ = sample.stamp_s;
+    newest_chunk_ = next_evaluated_chunk_ = 0;
   }
   const double k_real = std::floor((sample.stamp_s - origin_s_) / options_.bin_s);
   if (std::abs(k_real) * options_.bin_s > options_.max_span_s) {
@@ -55,8 +61,21 @@ void ClockCheck::add_sample(const ImuSample& sample) {
   const std::int64_t c = (k >= 0 ? k : k - (kChunkBins - 1)) / kChunkBins;
   // Samples come nearly in order: most land in the chunk of the previous one.
   if (last_chunk_ == chunks_.end() || last_chunk_->first != c) {
-    last_chunk_ = chunks_.try_emplace(c).first;
-    if (last_chunk_->second.empty()) last_chunk_->second.resize(kChunkBins);
+    auto found = chunks_.find(c);
+    if (found == chunks_.end()) {
+      if (add_to_still(k, sample.outputs)) {  // a late sample of a rest already summarized
+        total_sum_ += sample.outputs;
+        ++samples_;
+        return;
+      }
+      found = chunks_.try_emplace(c).first;
+      found->second.resize(kChunkBins);
+    }
+    last_chunk_ = found;
+    if (c > newest_chunk_) {
+      newest_chunk_ = c;
+      collapse_before(c);
+    }
   }
   Bin& bin = last_chunk_->second[static_cast<std::size_t>(k - c * kChunkBins)];
   if (bin.n == 0) {
@@ -66,14 +85,23 @@ void ClockCheck::add_sample(const ImuSample& sample) {
   }
   bin.sum += sample.outputs;
   ++bin.n;
+  total_sum_ += sample.outputs;
   ++samples_;
 }
 
 std::size_t ClockCheck::memory_bytes() const {
   // A map node: the chunk's vector and key, and the tree's links (about 4 pointers).
   constexpr std::size_t kNode = sizeof(std::pair<const std::int64_t, Chunk>) + 4 * sizeof(void*);
+  constexpr std::size_t kStillNode =
+      sizeof(std::pair<const std::int64_t, Still>) + 4 * sizeof(void*);
+  std::size_t stills = 0;
+  for (const auto& [first, still] : stills_) {
+    stills += kStillNode + (still.head.capacity() + still.tail.capacity()) * sizeof(Bin) +
+              still.loud.capacity() * sizeof(still.loud[0]);
+  }
   return sizeof(*this) + commands_.capacity() * sizeof(GimbalEvent) +
-         chunks_.size() * (kNode + kChunkBins * sizeof(Bin));
+         chunks_.size() * (kNode + kChunkBins * sizeof(Bin)) + stills +
+         still_motion_.memory_bytes() + all_motion_.memory_bytes() - 2 * sizeof(LogHistogram);
 }
 
 namespace {
@@ -215,6 +243,33 @@ ClockCheckResult ClockCheck::result() const {
       b.cum_n[k - k0 + 1] = static_cast<double>(bin.n);
     }
   }
+  // The still stretches: their kept bins, and their middle spread evenly over its bins (the rest
+  // is still: its mean is the same throughout). Boundaries inside them have no motion here: their
+  // values are in still_motion_.
+  std::vector<char> inside(b.size + 1, 0);
+  for (const auto& [first, still] : stills_) {
+    auto put = [&](std::int64_t k, const Eigen::Vector3d& sum, double n) {
+      if (n <= 0.0 || k < k0 || k - k0 >= static_cast<std::int64_t>(b.size)) return;
+      b.cum_sum[static_cast<std::size_t>(k - k0 + 1)] = sum;
+      b.cum_n[static_cast<std::size_t>(k - k0 + 1)] = n;
+    };
+    const auto edge = static_cast<std::int64_t>(still.head.size());
+    for (std::int64_t i = 0; i < edge; ++i) {
+      const Bin& h = still.head[static_cast<std::size_t>(i)];
+      const Bin& t = still.tail[static_cast<std::size_t>(i)];
+      put(first + i, h.sum, static_cast<double>(h.n));
+      put(still.last - edge + 1 + i, t.sum, static_cast<double>(t.n));
+    }
+    const std::int64_t middle = still.last - first + 1 - 2 * edge;
+    for (std::int64_t k = first + edge; k <= still.last - edge; ++k) {
+      put(k, still.middle_sum / static_cast<double>(middle),
+          static_cast<double>(still.middle_n) / static_cast<double>(middle));
+    }
+    for (std::int64_t k = std::max(first + 1, k0);
+         k <= still.last && k - k0 <= static_cast<std::int64_t>(b.size); ++k) {
+      inside[static_cast<std::size_t>(k - k0)] = 1;
+    }
+  }
   for (std::size_t k = 0; k < b.size; ++k) {
     b.cum_sum[k + 1] += b.cum_sum[k];
     b.cum_n[k + 1] += b.cum_n[k];
@@ -225,6 +280,7 @@ ClockCheckResult ClockCheck::result() const {
   b.motion.assign(b.size + 1, 0.0);
   std::vector<double> seen;
   for (std::size_t k = block; k + block <= b.size; ++k) {
+    if (inside[k] != 0) continue;
     const double n_before = b.cum_n[k] - b.cum_n[k - block];
     const double n_after = b.cum_n[k + block] - b.cum_n[k];
     if (n_before <= 0.0 || n_after <= 0.0) continue;
@@ -233,15 +289,32 @@ ClockCheckResult ClockCheck::result() const {
     b.motion[k] = (after - before).cwiseAbs().sum();
     seen.push_back(b.motion[k]);
   }
-  if (seen.empty()) {
+  for (const auto& [first, still] : stills_) {
+    for (const auto& [k, m] : still.loud) {
+      if (k < k0 + static_cast<std::int64_t>(block) ||
+          k - k0 + static_cast<std::int64_t>(block) > static_cast<std::int64_t>(b.size))
+        continue;
+      b.motion[static_cast<std::size_t>(k - k0)] = m;
+      seen.push_back(m);
+    }
+  }
+  if (seen.empty() && still_motion_.count() == 0) {
     r.not_checked_why = "the IMU stream has gaps everywhere";
     return r;
   }
   // Noise floor: most of the time the DUT rests, so the median is noise (and round-off of the
   // output level when there is no noise).
-  std::nth_element(seen.begin(), seen.begin() + seen.size() / 2, seen.end());
+  // (The still stretches' values are counted to 0.5 %: their histogram.)
+  double median_motion = 0.0;
+  if (still_motion_.count() == 0) {
+    std::nth_element(seen.begin(), seen.begin() + seen.size() / 2, seen.end());
+    median_motion = seen[seen.size() / 2];
+  } else {
+    std::sort(seen.begin(), seen.end());
+    median_motion = still_motion_.at_rank_with(seen, (seen.size() + still_motion_.count()) / 2);
+  }
   const Eigen::Vector3d level = b.cum_sum[b.size] / std::max(1.0, b.cum_n[b.size]);
-  const double floor = std::max(3.0 * seen[seen.size() / 2], 1e-9 * (1.0 + level.norm()));
+  const double floor = std::max(3.0 * median_motion, 1e-9 * (1.0 + level.norm()));
   b.cum_motion.assign(b.size + 2, 0.0);
   for (std::size_t k = 0; k <= b.size; ++k) {
     b.motion[k] = std::max(0.0, b.motion[k] - floor);

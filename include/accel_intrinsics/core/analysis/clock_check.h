@@ -22,15 +22,22 @@
 //
 // Memory: one bin (32 bytes) per `bin_s` of IMU time (100 per second by default, 3.2 kB per second
 // of the run), whatever the IMU rate, in chunks of kChunkBins consecutive bins: a stream that
-// jumps between epochs costs one chunk per stretch, not the bins in between.
+// jumps between epochs costs one chunk per stretch, not the bins in between. A still stretch (a
+// rest) is not kept bin by bin: once a chunk's motion (step 1's signal, computed as the chunk
+// completes) stays below the noise floor seen so far at every bin boundary, the chunk joins the
+// still stretch before it, which keeps its first and last block of bins (so the motion next to it
+// is the same), the sum of the bins between, and their motion values in a LogHistogram (for the
+// noise floor's median). A rest of any length then costs the same few kB.
 #pragma once
 
 #include <Eigen/Core>
 #include <cstdint>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "accel_intrinsics/core/analysis/log_histogram.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 
 namespace accel_intrinsics {
@@ -113,6 +120,25 @@ class ClockCheck {
     std::uint64_t n = 0;
   };
   using Chunk = std::vector<Bin>;  // kChunkBins bins from its key x kChunkBins
+  // Bins [first, last] of a rest: the first and last `block` bins kept, the sum of those between.
+  struct Still {
+    std::int64_t first = 0, last = 0;
+    Chunk head, tail;
+    Eigen::Vector3d middle_sum = Eigen::Vector3d::Zero();
+    std::uint64_t middle_n = 0;
+    // Its boundaries whose motion rose above the noise floor so far, with that motion.
+    std::vector<std::pair<std::int64_t, double>> loud;
+  };
+  static constexpr std::size_t kMaxLoud = 16;  // per chunk, for a chunk to join a still stretch
+
+  std::int64_t block_bins() const;
+  // The bin k, if kept (in a chunk, or a still stretch's head or tail); nullptr else.
+  const Bin* find_bin(std::int64_t k) const;
+  // A sample for bin k, if k lies in a still stretch (a late one): true when taken.
+  bool add_to_still(std::int64_t k, const Eigen::Vector3d& outputs);
+  // Evaluate the chunks complete by now (before chunk `newest` - 1): join the still ones.
+  void collapse_before(std::int64_t newest);
+  void try_collapse(std::map<std::int64_t, Chunk>::iterator chunk);
 
   ClockCheckOptions options_;
   std::vector<GimbalEvent> commands_;
@@ -124,6 +150,12 @@ class ClockCheck {
   std::int64_t first_bin_ = 0, last_bin_ = 0;  // the lowest and highest with one
   std::uint64_t samples_ = 0;
   std::uint64_t bins_refused_ = 0;
+  Eigen::Vector3d total_sum_ = Eigen::Vector3d::Zero();
+  std::map<std::int64_t, Still> stills_;  // by first bin
+  std::int64_t newest_chunk_ = 0;
+  std::int64_t next_evaluated_chunk_ = 0;
+  LogHistogram still_motion_;  // motion at the boundaries inside still stretches
+  LogHistogram all_motion_;    // at every boundary evaluated: the noise floor so far
 };
 
 }  // namespace core
