@@ -244,7 +244,12 @@ def main():
     parser.add_argument("--table", default=os.path.join(REPO, "docs", "generated",
                                                         "mutants_sample.md"),
                         help="where --sample writes its table")
+    parser.add_argument("--recheck", action="store_true",
+                        help="run the survivors of the --table again (mutants_recheck.py)")
     args = parser.parse_args()
+    if args.recheck:
+        import mutants_recheck
+        sys.exit(mutants_recheck.run(args.table))
     if args.sample:
         import mutants_sample
         sys.exit(mutants_sample.run(args.sample, args.seed, args.table))

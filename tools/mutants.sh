@@ -7,12 +7,15 @@
 #
 # Usage: bash tools/mutants.sh [--check] [--only NAME[,NAME...]] [--list FILE] [--skip-baseline]
 #        bash tools/mutants.sh --sample N [--seed S] [--table FILE]
+#        bash tools/mutants.sh --recheck [--table FILE]
 #   --check   only check the list (every pattern once in its file), no build: seconds
 #   --only    a batch: these mutations only (the whole list takes about an hour on 2 cores)
 #   --sample  instead of the list, N mutations drawn by rule with the seed (issue 37,
 #             tools/mutants_sample.py and tools/mutant_rules.py), each run against the fast tier
 #             of every unit binary (tools/fast_tier.py); the table goes to
 #             docs/generated/mutants_sample.md (--table). See docs/mutation_testing.md.
+#   --recheck the survivors of that table run again with today's tests, the table rewritten with
+#             a triage section and the score after triage (tools/mutants_recheck.py).
 # Environment: MUTANTS_DIR (default ${ACCEL_WS}_mutants: the copy in a directory named as this
 # checkout, ws/ its workspace,
 # logs/ a log per mutation, mutants_table.md the table), MUTANTS_TEST_TIMEOUT (s per test spec,

@@ -142,14 +142,9 @@ def write_table(path, header, rows, score_line):
         f.write("\n".join(lines) + "\n")
 
 
-def run(n, seed, table_path):
-    start_all = time.time()
-    scratch, source, ws, logs = mutants.scratch_layout()
-    binaries = list(mutants.BINARIES)
-    lock = mutants.BuildLock()
-    waited = time.time()
-    lock.acquire()
-    waited = time.time() - waited  # waits for the build lock are left out of the times below
+def baseline(ws, source, binaries, logs):
+    """Builds the unmutated copy and runs its fast tier (it must pass; exit 2 if not). Returns
+    ({binary: gtest filter}, {binary: timeout s}, {binary: unmutated s}). The lock is held."""
     if not mutants.build(ws, source, binaries, os.path.join(logs, "baseline.build.log")):
         print("[mutants] the unmutated build failed: %s" % os.path.join(logs, "baseline.build.log"))
         sys.exit(2)
@@ -170,6 +165,36 @@ def run(n, seed, table_path):
         # A mutant that makes a binary ten times slower than unmutated hung it: caught.
         timeouts[binary] = int(10 * seconds + 30)
         print("[mutants] baseline: %s fast tier passes in %.0f s" % (binary, seconds), flush=True)
+    return tier, timeouts, tier_s
+
+
+def run_one(m, index, ws, source, binaries, logs, tier, timeouts, equivalent, prefix="sample"):
+    """Applies one mutation, builds, runs the tier: (verdict, detail, seconds). The lock is held."""
+    t0 = time.time()
+    log = os.path.join(logs, "%s.%d.%s.log" % (prefix, index, m.key()))
+    if os.path.exists(log):
+        os.remove(log)
+    with mutants.mutated_file(os.path.join(source, m.path), m.apply):
+        if not mutants.build(ws, source, binaries, log):
+            verdict, detail = "does not compile", compile_error(log)
+        else:
+            verdict, detail = run_tier(ws, m.path, log, tier, timeouts)
+            if verdict == "SURVIVED" and m.key() in equivalent:
+                verdict, detail = "equivalent", equivalent[m.key()]
+            elif verdict == "caught" and m.key() in equivalent:
+                detail += " (listed as equivalent in tools/mutants_equivalent.txt: wrongly)"
+    return verdict, detail, time.time() - t0
+
+
+def run(n, seed, table_path):
+    start_all = time.time()
+    scratch, source, ws, logs = mutants.scratch_layout()
+    binaries = list(mutants.BINARIES)
+    lock = mutants.BuildLock()
+    waited = time.time()
+    lock.acquire()
+    waited = time.time() - waited  # waits for the build lock are left out of the times below
+    tier, timeouts, tier_s = baseline(ws, source, binaries, logs)
     baseline_s = time.time() - start_all - waited
 
     files = candidate_files(source, ws)
@@ -184,20 +209,8 @@ def run(n, seed, table_path):
         t0 = time.time()
         lock.turn()
         waited += time.time() - t0
-        t0 = time.time()
-        log = os.path.join(logs, "sample.%d.%s.log" % (index, m.key()))
-        if os.path.exists(log):
-            os.remove(log)
-        with mutants.mutated_file(os.path.join(source, m.path), m.apply):
-            if not mutants.build(ws, source, binaries, log):
-                verdict, detail = "does not compile", compile_error(log)
-            else:
-                verdict, detail = run_tier(ws, m.path, log, tier, timeouts)
-                if verdict == "SURVIVED" and m.key() in equivalent:
-                    verdict, detail = "equivalent", equivalent[m.key()]
-                elif verdict == "caught" and m.key() in equivalent:
-                    detail += " (listed as equivalent in tools/mutants_equivalent.txt: wrongly)"
-        seconds = time.time() - t0
+        verdict, detail, seconds = run_one(m, index, ws, source, binaries, logs, tier,
+                                           timeouts, equivalent)
         rows.append((m, verdict, detail, seconds))
         print("[mutants] %d/%d %s:%d %s [%s]: %s %s (%.0f s)" % (
             index, len(drawn), m.path, m.line, m.rule, m.key(), verdict, detail, seconds),
