@@ -192,6 +192,15 @@ TEST_F(NoiseParametersTest, PureWhiteNoiseShowsNoRandomWalkAboveItsUncertainty) 
   EXPECT_LT(p.random_walk_std, 0.3 * record_->walk(0));
 }
 
+// The axis is an index into three-vectors: 0, 1 and 2 are read, anything else is refused rather
+// than read past the end (mutation sample, issue 37).
+TEST_F(NoiseParametersTest, RefusesAnAxisOutsideZeroToTwo) {
+  EXPECT_THROW(noise_parameters(*curve_, 3), std::invalid_argument);
+  EXPECT_THROW(noise_parameters(*curve_, -1), std::invalid_argument);
+  EXPECT_NO_THROW(noise_parameters(*curve_, 0));
+  EXPECT_NO_THROW(noise_parameters(*curve_, 2));
+}
+
 TEST(DwellNoise, DensityFromSimulatedDwells) {
   SimulationOptions sim;
   sim.rate_hz = 200.0;
