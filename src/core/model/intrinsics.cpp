@@ -104,7 +104,8 @@ Intrinsics intrinsics_from_cross_sensitivity(const Eigen::Matrix3d& P,
   check_finite_matrix(covariance_P, "covariance of P");
   const Eigen::JacobiSVD<Eigen::Matrix3d> svd(P);
   const Eigen::Vector3d sv = svd.singularValues();
-  if (!(sv(0) > 0.0) || sv(2) <= 1e-12 * sv(0)) {
+  // sv(0) is the largest, >= 0: a zero matrix has sv(2) = sv(0) = 0 and is refused here too.
+  if (sv(2) <= 1e-12 * sv(0)) {
     throw std::invalid_argument("cross-sensitivity matrix P is singular (singular values " +
                                 std::to_string(sv(0)) + ", " + std::to_string(sv(1)) + ", " +
                                 std::to_string(sv(2)) + ")");

@@ -160,6 +160,7 @@ TEST(Intrinsics, SingularCrossSensitivityThrows) {
   P = Eigen::Matrix3d::Identity();
   P(1, 1) = std::nan("");
   EXPECT_THROW(intrinsics_from_cross_sensitivity(P), std::invalid_argument);
+  EXPECT_THROW(intrinsics_from_cross_sensitivity(Eigen::Matrix3d::Zero()), std::invalid_argument);
 }
 
 // ---- with the fit ------------------------------------------------------------------------
