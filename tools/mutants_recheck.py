@@ -5,7 +5,8 @@ Reads the table a `--sample` run wrote (docs/generated/mutants_sample.md), finds
 that SURVIVED there in today's code (same file, rule and line text before and after: the key of
 tools/mutants_equivalent.txt; the line number may have moved) and runs it again against the fast
 tier, now with the tests written for it. A survivor listed in tools/mutants_equivalent.txt is
-not run: it is reported as equivalent with its reason. The table is rewritten: the first run's
+not run: it is reported as equivalent with its reason (also when its line is gone from the
+code, e.g. a redundant clause removed). The table is rewritten: the first run's
 rows as they were, then a triage section, one row per survivor, and the score after triage:
 (caught first + caught on recheck) / (compiled - equivalent). Run it again after more tests:
 the triage section is replaced, the first run's rows are kept.
@@ -14,6 +15,7 @@ import os
 import re
 import time
 
+import mutant_rules
 import mutants
 import mutants_sample
 
@@ -48,6 +50,13 @@ def read_first_run(path):
     return lines, rows
 
 
+def row_key(row):
+    """The key of the mutation a first-run row names (mutant_rules.Mutation.key: its file, rule
+    and text), known even when today's code no longer has the line."""
+    return mutant_rules.Mutation(row["path"], row["line"], row["rule"], row["before"],
+                                 row["after"], 0).key()
+
+
 def find(row, pool):
     """The mutation of today's code that a first-run row names, or None: the same file, rule and
     text; of several (the same text on several lines), the one nearest the recorded line."""
@@ -70,10 +79,11 @@ def run(table_path):
     triage = []
     for row in survivors:
         m = find(row, pool)
-        if m is None:
+        key = row_key(row)
+        if key in equivalent:
+            verdict, detail = "equivalent", equivalent[key]
+        elif m is None:
             verdict, detail = "not found", "the line changed since the first run: draw again"
-        elif m.key() in equivalent:
-            verdict, detail = "equivalent", equivalent[m.key()]
         else:
             lock.turn()
             verdict, detail, _ = mutants_sample.run_one(m, row["index"], ws, source, binaries,

@@ -75,3 +75,11 @@ def test_the_rewritten_table_keeps_the_first_run_and_scores_the_triage(tmp_path)
     assert text.count(rc.TRIAGE_HEADING) == 1 and "1 survivors left" not in text
     assert "(1 caught in the run + 1 caught on recheck) / (3 compiled - 0 equivalent) = 66.7 %" \
         in text
+
+
+def test_a_rows_key_is_the_key_of_its_mutation(tmp_path):
+    path = str(tmp_path / "t.md")
+    _, rows = first_run_table(path)
+    _, read = rc.read_first_run(path)
+    for (m, _, _, _), r in zip(rows, read):
+        assert rc.row_key(r) == m.key()
