@@ -3,6 +3,7 @@
 // whose message must carry the device's own words.
 #include <fcntl.h>
 #include <gtest/gtest.h>
+#include <pty.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -539,6 +540,39 @@ TEST(SerialPort, MissingPortSaysSo) {
   }
 }
 
+// A node started with stdin closed opens its port as file descriptor 0, a valid descriptor:
+// the port must work there. fd 0 is freed here (and restored after) so that the open takes it.
+TEST(SerialPort, WorksOnFileDescriptorZero) {
+  int device = -1, port_side = -1;
+  char name[256] = {0};
+  ASSERT_EQ(openpty(&device, &port_side, name, nullptr, nullptr), 0);
+  const int saved_stdin = ::dup(0);
+  ::close(0);
+  std::string reply, error;
+  char received[8] = {0};
+  try {
+    ai::SerialPort port;
+    port.open(name, 115200);
+    EXPECT_EQ(::fcntl(0, F_GETFD), FD_CLOEXEC) << "the port did not take fd 0";
+    port.write("?\n");
+    for (int k = 0; k < 100 && ::read(device, received, 1) != 1; ++k)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    ASSERT_EQ(::write(device, "ok\r\n", 4), 4);
+    port.read_line(&reply, 1.0);
+  } catch (const std::exception& ex) {
+    error = ex.what();
+  }
+  if (saved_stdin >= 0) {
+    ::dup2(saved_stdin, 0);
+    ::close(saved_stdin);
+  }
+  ::close(device);
+  ::close(port_side);
+  EXPECT_EQ(error, "");
+  EXPECT_EQ(received[0], '?');
+  EXPECT_EQ(reply, "ok");
+}
+
 TEST(Recover, GrblAlarmIsHomedAwayAndTheStageMovesAgain) {
   ai::EmulatorOptions e = fast();
   e.needs_homing = true;
@@ -555,6 +589,24 @@ TEST(Recover, GrblAlarmIsHomedAwayAndTheStageMovesAgain) {
   EXPECT_EQ(std::count(commands.begin(), commands.end(), "$H"), 2);
   EXPECT_EQ(fault_of_move(driver, target(Phase::X, 120.0)), "");
   EXPECT_NEAR(reported_alpha_deg(driver, Phase::X), 120.0, 0.01);
+}
+
+// After a recovery the stage is where the device says (homed: 0 deg), not at the target of
+// the move that faulted: the first update reads the device, however recent the faulted poll.
+TEST(Recover, TheFirstUpdateAfterARecoveryReportsTheHomedStage) {
+  ai::EmulatorOptions e = fast();
+  e.needs_homing = true;
+  e.fault = "alarm";
+  e.fault_after = 0;
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  ai::SerialGimbalOptions o = two_axis(emu->port(), "X", "Y");
+  o.home_at_start = true;
+  o.poll_interval_s = 2.0;  // the recovery (0.2 s homing) is over well within one interval
+  ai::GrblDriver driver(o);
+  EXPECT_NE(fault_of_move(driver, target(Phase::X, 120.0)).find("ALARM:1"), std::string::npos);
+  driver.recover(wall_s());
+  driver.update(wall_s());
+  EXPECT_NEAR(reported_alpha_deg(driver, Phase::X), 0.0, 0.01);
 }
 
 TEST(Recover, GrblAlarmIsUnlockedOnlyWhenConfigured) {

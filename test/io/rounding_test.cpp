@@ -45,6 +45,13 @@ TEST(Rounding, TwoSignificantDigits) {
   EXPECT_EQ(two_significant(0.0), "0");
 }
 
+TEST(Rounding, TwoSignificantDigitsKeepATrailingZeroJustAboveOneThousandth) {
+  // Fixed notation from 1e-3 on shows both digits, the zero too ("0.001" would show one).
+  EXPECT_EQ(two_significant(0.0010), "0.0010");
+  EXPECT_EQ(two_significant(0.001996), "0.0020");
+  EXPECT_EQ(two_significant(-0.0012), "-0.0012");
+}
+
 }  // namespace
 }  // namespace io
 }  // namespace accel_intrinsics

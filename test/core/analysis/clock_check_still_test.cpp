@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -131,6 +132,34 @@ TEST(ClockCheckStill, ALongerRestCostsNothingMore) {
   // rest meets a move (the chunks fall elsewhere on the moves).
   EXPECT_LE(long_rest.bytes, short_rest.bytes + 4 * 32 * ClockCheck::kChunkBins)
       << long_rest.bytes << " vs " << short_rest.bytes;
+}
+
+// A chunk joins a still stretch when its motion stays below the noise floor seen so far
+// (clock_check.h, "Memory"), the first chunk's included. Written here without noise: x ramps
+// (1 m/s^2 a second: a motion of 0.1 at every boundary) for 4.56 s, from the first sample, then
+// holds; a wiggle of 1e-4 m/s^2 (far below the ramp's motion, far above nothing) follows in the
+// fourth chunk, then x holds again. With the ramp's first chunk counted, the floor is the ramp's
+// and the wiggle is summarized: of the 8 chunks, the first three (the floor is known from the
+// fourth on) and the last two (waiting for the next) are kept bin by bin, 5 in all.
+TEST(ClockCheckStill, TheFloorCountsTheFirstChunksMotion) {
+  ClockCheck check;
+  const double bin_s = ClockCheckOptions().bin_s;
+  const double chunk_s = ClockCheck::kChunkBins * bin_s;
+  const double rate_hz = 1000.0;
+  for (std::size_t i = 0; i < static_cast<std::size_t>(8 * chunk_s * rate_hz); ++i) {
+    ImuSample s;
+    s.stamp_s = static_cast<double>(i) / rate_hz;
+    const double t = s.stamp_s;
+    double x = std::min(t, 4.56);
+    if (t >= 3 * chunk_s && t < 4 * chunk_s) x += 1e-4 * std::sin(2.0 * M_PI * t / 0.4);
+    s.outputs = Eigen::Vector3d(x, 0.0, 9.81);
+    check.add_sample(s);
+  }
+  // Beyond what an empty check holds (its noise-floor histograms are of fixed size).
+  const std::size_t held = check.memory_bytes() - ClockCheck().memory_bytes();
+  const std::size_t chunk_bytes = ClockCheck::kChunkBins * 32;  // 32 bytes a bin
+  EXPECT_GT(held, 5 * chunk_bytes) << held;
+  EXPECT_LT(held, 6 * chunk_bytes) << held;
 }
 
 }  // namespace

@@ -20,6 +20,10 @@
 #include "../../support/random_device.h"
 #include "../../support/statistical_bounds.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
+#include "accel_intrinsics/core/dwells/position_table.h"
+#include "accel_intrinsics/core/fit/fit.h"
+#include "accel_intrinsics/core/model/constants.h"
+#include "accel_intrinsics/core/noise/slow_part_fit.h"
 #include "accel_intrinsics/core/simulation/simulator.h"
 
 namespace accel_intrinsics {
@@ -309,6 +313,87 @@ TEST(Discrepancy, DetectionThresholdFromNoncentralChiSquare) {
   AnalysisOptions bad;
   bad.alpha = 1.5;
   EXPECT_THROW(validate(bad), std::invalid_argument);
+}
+
+// The slow part fitted to a run (slow_part_from_run) is the restricted likelihood of the residuals
+// outside the column space of the base model's Jacobian by all 12 of its parameters (S and O): the
+// same as slow_part_from_residuals given that Jacobian, here taken by central differences of the
+// model's prediction. The run is written here: 3 phases x 8 steps of 2 s, a random walk added to
+// every dwell mean.
+TEST(Discrepancy, SlowPartFromRunProjectsOutEveryParameterOfTheBaseModel) {
+  PositionTable table;
+  const Phase phases[] = {Phase::X, Phase::Y, Phase::Z};
+  double t = 0.0;
+  for (Phase phase : phases) {
+    for (std::uint32_t step = 0; step < 8; ++step) {
+      DwellRecord r;
+      r.phase = phase;
+      r.step = step;
+      r.angle_rad = 2.0 * M_PI * step / 8.0;
+      r.t_start_s = t + 1.0;
+      r.t_end_s = t + 3.0;
+      r.n = 200;
+      r.std = Eigen::Vector3d::Constant(0.01);
+      table.rows.push_back(r);
+      t += 3.0;
+    }
+  }
+  Device truth;
+  truth.S << 1.01, 0.002, -0.003, 0.001, 0.99, 0.004, -0.002, 0.003, 1.02;
+  truth.O << 0.05, -0.03, 0.02;
+  const double g = kStandardGravity;
+  const std::vector<DwellGeometry> geoms = dwell_geometries(table);
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::Vector3d walk = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < table.rows.size(); ++i) {
+    walk += 2e-3 * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
+    const Eigen::Vector3d white(normal(rng), normal(rng), normal(rng));
+    table.rows[i].mean = predict_outputs(truth, geoms[i], g) + walk + 1e-3 * white;
+  }
+  FitOptions options;
+  options.local_gravity = g;
+  for (int s = 0; s < 3; ++s) {
+    options.noise_model.axes[s].white_std = 0.01;
+    options.noise_model.axes[s].rw_density = 1e-3;
+  }
+  const NoiseModel from_run = slow_part_from_run(table, options);
+
+  FitOptions white_options = options;
+  white_options.noise_model = NoiseModel();
+  const FitResult base = fit(table, white_options);
+  const std::vector<Eigen::Vector3d> se = base.standard_errors.size() == table.rows.size()
+                                              ? base.standard_errors
+                                              : dwell_standard_errors(table);
+  const Device at = device_from_fit(base);
+  const Eigen::Index n = 3 * static_cast<Eigen::Index>(table.rows.size());
+  Eigen::MatrixXd J(n, 12);
+  for (int j = 0; j < 12; ++j) {
+    const double h = 1e-3;
+    Device plus = at, minus = at;
+    if (j < 9) {
+      plus.S(j / 3, j % 3) += h;
+      minus.S(j / 3, j % 3) -= h;
+    } else {
+      plus.O(j - 9) += h;
+      minus.O(j - 9) -= h;
+    }
+    for (std::size_t r = 0; r < table.rows.size(); ++r) {
+      const Eigen::Vector3d d =
+          (predict_outputs(plus, geoms[r], g) - predict_outputs(minus, geoms[r], g)) / (2 * h);
+      for (int s = 0; s < 3; ++s) J(3 * static_cast<Eigen::Index>(r) + s, j) = d(s) / se[r](s);
+    }
+  }
+  const NoiseModel reference =
+      slow_part_from_residuals(table, options.noise_model, base.residuals, se, J);
+  for (int s = 0; s < 3; ++s) {
+    const AxisNoiseModel& a = from_run.axes[s];
+    const AxisNoiseModel& b = reference.axes[s];
+    EXPECT_TRUE(b.slow()) << "axis " << s << ": the walk was not seen";
+    EXPECT_NEAR(a.rw_density, b.rw_density, 1e-6 * b.rw_density + 1e-12) << "axis " << s;
+    EXPECT_NEAR(a.gm_sigma, b.gm_sigma, 1e-6 * b.gm_sigma + 1e-12) << "axis " << s;
+    EXPECT_NEAR(a.gm_tau_s, b.gm_tau_s, 1e-6 * b.gm_tau_s + 1e-12) << "axis " << s;
+  }
 }
 
 }  // namespace
