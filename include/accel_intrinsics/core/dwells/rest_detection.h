@@ -151,8 +151,8 @@ class RestDetector {
 RestDetection detect_rests(const std::vector<ImuSample>& samples,
                            const RestDetectionOptions& options = {});
 
-// The quiet std of a stream: the quiet_quantile of its block stds per axis, floored at one
-// output step (quantized outputs whose quiet blocks read constant).
+// The quiet std of a stream: the quiet_quantile of its block stds per axis, floored at half
+// an output step (quantized outputs whose quiet blocks read constant).
 Eigen::Vector3d quiet_std_of(const std::vector<ImuSample>& samples, std::uint64_t block_samples,
                              double quantile);
 
