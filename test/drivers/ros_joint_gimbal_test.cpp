@@ -189,6 +189,27 @@ TEST(RosJointGimbal, JointThatNeverArrivesIsAFaultNamingIt) {
   }
 }
 
+// The fault a user reads names the limits as they were set (a half-second timeout is not
+// rounded to a whole one), so the message says which parameter to raise and from what.
+TEST(RosJointGimbal, MoveTimeoutFaultQuotesTheLimitsAsSet) {
+  JointController c = controller();
+  c.joints[0].stuck = true;
+  ai::RosJointOptions o = options();
+  o.move_timeout_s = 2.5;
+  ai::RosJointGimbal driver(o);
+  driver.connect(&c);
+  run(&driver, &c, 0.0, 0.2);
+  driver.move_to(target(core::Phase::X, 60.0), 0.2);
+  try {
+    run(&driver, &c, 0.2, 3.0);
+    FAIL() << "no fault for a joint that never arrives within 2.5 s";
+  } catch (const ai::GimbalFault& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("within move_timeout_s = 2.5 s"), std::string::npos) << what;
+    EXPECT_NE(what.find("(tolerance_deg = 0.050)"), std::string::npos) << what;
+  }
+}
+
 TEST(RosJointGimbal, RejectsAnAxisMapOnUnknownAxes) {
   ai::RosJointOptions o = options();
   o.axis_map.phases[2].axis = "Z";

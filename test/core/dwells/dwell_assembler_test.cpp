@@ -238,6 +238,34 @@ TEST(DwellAssembler, ReturnsEachDwellOnceAndResetStartsOver) {
   EXPECT_FALSE(assembler.done());
 }
 
+// A reset starts a new run: its counters (what the result reports as used and dropped) count that
+// run only, so the same recording fed after a reset counts exactly what it counted the first time.
+TEST(DwellAssembler, ResetZeroesTheCounters) {
+  core::SimulationOptions sim;
+  sim.protocol.steps_per_phase = 3;
+  sim.protocol.dwell_s = 0.5;
+  const core::Recording rec = core::simulate_recording(sim);
+  core::DwellAssembler assembler;
+  core::feed_in_stamp_order(rec, &assembler);
+  core::GimbalEvent broken = rec.commands.back();
+  broken.stamp_s = std::nan("");  // a command with a non-finite stamp: counted and warned
+  assembler.add_command(broken);
+  const core::AssemblerCounters first = assembler.counters();
+  ASSERT_EQ(first.commands, rec.commands.size() + 1);
+  ASSERT_GT(first.samples_used, 0u);
+  ASSERT_GT(first.commands_out_of_order, 0u);
+  ASSERT_FALSE(first.last_warning.empty());
+  assembler.reset();
+  EXPECT_EQ(assembler.counters().commands, 0u);
+  EXPECT_EQ(assembler.counters().samples_used, 0u);
+  EXPECT_EQ(assembler.counters().commands_out_of_order, 0u);
+  EXPECT_TRUE(assembler.counters().last_warning.empty());
+  core::feed_in_stamp_order(rec, &assembler);
+  EXPECT_EQ(assembler.counters().commands, rec.commands.size());
+  EXPECT_EQ(assembler.counters().samples_used, first.samples_used);
+  EXPECT_EQ(assembler.counters().dropped_outside_dwell, first.dropped_outside_dwell);
+}
+
 TEST(DwellAssembler, RecordsTheClosingPositionAsStepN) {
   // A recorded run with the closing position: step N (= steps) at 2 pi is a dwell like any other,
   // and with no angle effect it reads what step 0 read (the same orientation).

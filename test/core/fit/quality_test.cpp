@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 #include "../../support/random_device.h"
@@ -101,6 +102,27 @@ TEST(QualityGate, StarvedDwellFails) {
   const CalibrationReport report = calibrate(table, nullptr, {});
   EXPECT_FALSE(report.quality.pass);
   EXPECT_TRUE(mentions(report.quality, "2 samples")) << report.quality.summary();
+}
+
+// A responsivity that is zero, negative or NaN is no responsivity at all: the gate must say so in
+// every unit mode (a NaN slips past every range and spread comparison).
+TEST(QualityGate, NonPositiveOrNanResponsivityIsNamed) {
+  const PositionTable table = simulate_position_table(honest_stand(8));
+  const CalibrationReport report = calibrate(table, nullptr, {});
+  ASSERT_TRUE(report.quality.pass) << report.quality.summary();
+  for (bool si : {true, false}) {
+    QualityOptions options;
+    options.outputs_in_si = si;
+    for (double bad : {std::nan(""), 0.0, -1.0}) {
+      FitResult fit = report.certificate;
+      fit.intrinsics.responsivity(1) = bad;
+      const Quality q = assess_quality(fit, table, options);
+      EXPECT_FALSE(q.pass) << "responsivity " << bad << " si " << si;
+      EXPECT_TRUE(mentions(q, "responsivity |v|")) << q.summary();
+      EXPECT_TRUE(mentions(q, "is not a responsivity"))
+          << "responsivity " << bad << ": " << q.summary();
+    }
+  }
 }
 
 }  // namespace

@@ -28,3 +28,10 @@ TEST(NormalGravity, RejectsBadLatitude) {
   EXPECT_THROW(normal_gravity(91.0), std::invalid_argument);
   EXPECT_THROW(normal_gravity(std::nan("")), std::invalid_argument);
 }
+
+// South of the south pole is as impossible as north of the north pole: both ends are checked.
+TEST(NormalGravity, RejectsLatitudeSouthOfTheSouthPole) {
+  EXPECT_THROW(normal_gravity(-100.0), std::invalid_argument);
+  EXPECT_THROW(normal_gravity(-90.001), std::invalid_argument);
+  EXPECT_NO_THROW(normal_gravity(-90.0));
+}

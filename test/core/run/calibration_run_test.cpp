@@ -810,6 +810,25 @@ TEST(CalibrationRun, SecondRunAfterARunWithARetryStartsFresh) {
   EXPECT_EQ(run.status(stand.now_s_).retries, 0u);
 }
 
+// The counters a run reports (samples used, dropped, commands) belong to that run: a reset drops
+// those of the assembler a retry replaced as well as those of the current one.
+TEST(CalibrationRun, ResetZeroesTheCountersOfRestartedAssemblers) {
+  FakeStand stand;
+  stand.keep_first_samples_of(stand.dwell_interval(Phase::Y, 0), 5);
+  CalibrationRun run(retrying_options(20));
+  stand.play(&run);
+  ASSERT_EQ(stand.resumes_.size(), 1u);  // a retry: the first assembler was replaced
+  ASSERT_EQ(run.state(), RunState::Done);
+  ASSERT_GT(run.status(stand.now_s_).counters.commands, 0u);
+  ASSERT_GT(run.status(stand.now_s_).counters.samples_used, 0u);
+  stand.carry_out(&run, run.reset("reset requested"));
+  const AssemblerCounters after = run.status(stand.now_s_).counters;
+  EXPECT_EQ(after.commands, 0u);
+  EXPECT_EQ(after.samples_used, 0u);
+  EXPECT_EQ(after.dropped_outside_dwell, 0u);
+  EXPECT_EQ(after.dropped_settle_discard, 0u);
+}
+
 TEST(CalibrationRun, RepliesToARequestOfAResetRunAreIgnored) {
   FakeStand stand;
   const auto bad = stand.dwell_interval(Phase::X, 2);
