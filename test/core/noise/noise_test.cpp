@@ -245,6 +245,21 @@ TEST(DwellNoise, DensityUncertaintyIsTheSpreadOfTheEstimate) {
   }
 }
 
+// The model's Allan variance of a Gauss-Markov part scales with its variance gm_sigma^2: the
+// textbook curve sigma^2 (2x - 3 + 4 e^-x - e^-2x) / x^2 at x = T / tau, written out here.
+TEST(Allan, ModelGaussMarkovCurveScalesWithItsVariance) {
+  NoiseModel m;
+  m.rate_hz = 100.0;
+  m.axes[1].gm_sigma = 0.02;
+  m.axes[1].gm_tau_s = 10.0;
+  for (double T : {1.0, 10.0, 100.0}) {
+    const double x = T / 10.0;
+    const double want =
+        0.02 * 0.02 * (2.0 * x - 3.0 + 4.0 * std::exp(-x) - std::exp(-2.0 * x)) / (x * x);
+    EXPECT_NEAR(m.allan_variance(1, T), want, 1e-6 * want) << T;
+  }
+}
+
 TEST(Allan, RefusesTooShortRecords) {
   EXPECT_THROW(overlapping_allan_deviation(std::vector<Eigen::Vector3d>(10), 100.0),
                std::invalid_argument);
