@@ -260,6 +260,21 @@ TEST(Allan, ModelGaussMarkovCurveScalesWithItsVariance) {
   }
 }
 
+// kind() names the slow parts any axis has (reports and the noise-model file show it): a random
+// walk on one axis alone, or next to a Gauss-Markov part on another, must be named.
+TEST(NoiseModelKind, NamesTheSlowPartsOfAnyAxis) {
+  NoiseModel m;
+  m.axes[0].white_std = 1e-3;
+  EXPECT_EQ(m.kind(), "white");
+  m.axes[2].rw_density = 1e-4;
+  EXPECT_EQ(m.kind(), "random_walk");
+  m.axes[1].gm_sigma = 1e-3;
+  m.axes[1].gm_tau_s = 20.0;
+  EXPECT_EQ(m.kind(), "gauss_markov+random_walk");
+  m.axes[2].rw_density = 0.0;
+  EXPECT_EQ(m.kind(), "gauss_markov");
+}
+
 TEST(Allan, RefusesTooShortRecords) {
   EXPECT_THROW(overlapping_allan_deviation(std::vector<Eigen::Vector3d>(10), 100.0),
                std::invalid_argument);
