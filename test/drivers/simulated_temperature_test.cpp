@@ -69,5 +69,31 @@ TEST(SimulatedTemperature, BadProfileIsRejectedNamingTheParameter) {
   }
 }
 
+// After a long gap (2000 readings pending) one poll hands out the documented 1000 and the next
+// the following 1000, consecutive: bounded work per poll, no reading lost or repeated.
+TEST(SimulatedTemperature, APollAfterALongGapIsCappedAndTheNextContinues) {
+  SimulatedAccelerometerOptions o;
+  o.temperature.recorded = true;
+  o.temperature.rate_hz = 2.0;
+  SimulatedAccelerometer sensor(o, [](double, Eigen::Matrix3d* R) {
+    *R = Eigen::Matrix3d::Identity();
+    return OrientationStatus::Available;
+  });
+  std::vector<core::TemperatureSample> first, second, third;
+  sensor.poll_temperatures(100.0, &first);  // reading 200, at 100 s
+  ASSERT_EQ(first.size(), 1u);
+  first.clear();
+  sensor.poll_temperatures(1100.0, &first);  // readings 201 .. 2200 are due
+  ASSERT_EQ(first.size(), 1000u);
+  sensor.poll_temperatures(1100.0, &second);
+  ASSERT_EQ(second.size(), 1000u);
+  sensor.poll_temperatures(1100.0, &third);
+  EXPECT_TRUE(third.empty());
+  for (std::size_t k = 0; k < 1000; ++k) {
+    EXPECT_NEAR(first[k].stamp_s, 100.5 + 0.5 * k, 1e-9) << k;
+    EXPECT_NEAR(second[k].stamp_s, 600.5 + 0.5 * k, 1e-9) << k;
+  }
+}
+
 }  // namespace
 }  // namespace accel_intrinsics

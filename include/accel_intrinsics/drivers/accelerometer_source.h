@@ -96,6 +96,8 @@ class SimulatedAccelerometer : public AccelerometerSource {
                           double temperature_offset_k = 0.0) const;
   // The true DUT temperature at time_s since t0, degrees C.
   double temperature_c(double time_s) const { return options_.temperature.at(time_s); }
+  // At most 1000 readings per call (bounded work after a long gap); the rest follow, in order,
+  // in the next calls, none lost.
   void poll_temperatures(double now_s, std::vector<core::TemperatureSample>* out) override;
   bool publishes_temperature() const override { return options_.temperature.recorded; }
   double temperature_variance() const override {

@@ -287,6 +287,16 @@ TEST(FitBadInput, DegenerateGeometryNamesPhase) {
   EXPECT_NE(fit_error(table).find("phase x has a degenerate"), std::string::npos);
 }
 
+// A dead sensor (every dwell mean exactly 0) fits S = 0 exactly: the fit must refuse it with a
+// FitError naming the singular S rather than hand back an infinite cross-sensitivity matrix.
+TEST(FitBadInput, DeadSensorWithAllOutputsZeroIsRefused) {
+  PositionTable table = good_table();
+  for (DwellRecord& r : table.rows) r.mean.setZero();
+  const std::string msg = fit_error(table);
+  EXPECT_NE(msg.find("linearly dependent"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("S singular"), std::string::npos) << msg;
+}
+
 TEST(FitBadInput, EffectsNeedTheJointModel) {
   FitOptions opt;
   opt.model = FitModel::Eq4;

@@ -245,6 +245,36 @@ TEST(DwellNoise, DensityUncertaintyIsTheSpreadOfTheEstimate) {
   }
 }
 
+// The model's Allan variance of a Gauss-Markov part scales with its variance gm_sigma^2: the
+// textbook curve sigma^2 (2x - 3 + 4 e^-x - e^-2x) / x^2 at x = T / tau, written out here.
+TEST(Allan, ModelGaussMarkovCurveScalesWithItsVariance) {
+  NoiseModel m;
+  m.rate_hz = 100.0;
+  m.axes[1].gm_sigma = 0.02;
+  m.axes[1].gm_tau_s = 10.0;
+  for (double T : {1.0, 10.0, 100.0}) {
+    const double x = T / 10.0;
+    const double want =
+        0.02 * 0.02 * (2.0 * x - 3.0 + 4.0 * std::exp(-x) - std::exp(-2.0 * x)) / (x * x);
+    EXPECT_NEAR(m.allan_variance(1, T), want, 1e-6 * want) << T;
+  }
+}
+
+// kind() names the slow parts any axis has (reports and the noise-model file show it): a random
+// walk on one axis alone, or next to a Gauss-Markov part on another, must be named.
+TEST(NoiseModelKind, NamesTheSlowPartsOfAnyAxis) {
+  NoiseModel m;
+  m.axes[0].white_std = 1e-3;
+  EXPECT_EQ(m.kind(), "white");
+  m.axes[2].rw_density = 1e-4;
+  EXPECT_EQ(m.kind(), "random_walk");
+  m.axes[1].gm_sigma = 1e-3;
+  m.axes[1].gm_tau_s = 20.0;
+  EXPECT_EQ(m.kind(), "gauss_markov+random_walk");
+  m.axes[2].rw_density = 0.0;
+  EXPECT_EQ(m.kind(), "gauss_markov");
+}
+
 TEST(Allan, RefusesTooShortRecords) {
   EXPECT_THROW(overlapping_allan_deviation(std::vector<Eigen::Vector3d>(10), 100.0),
                std::invalid_argument);

@@ -773,6 +773,25 @@ TEST(CalibrationRun, FitFailureIsReportedWithTheMissingDwells) {
   EXPECT_NE(run.missing_message().find("the fit failed (phase z has 2 dwells)"), std::string::npos);
 }
 
+// A failed fit is logged as an error naming what is missing: the operator's only word that DONE
+// gave no result.
+TEST(CalibrationRun, FitFailureIsLoggedAsAnError) {
+  CalibrationRun run(options_for(4));
+  FakeStand stand;
+  stand.answer_fits_ = false;
+  stand.play(&run);
+  ASSERT_EQ(stand.open_tickets_.size(), 1u);
+  const RunActions actions = run.on_fit_finished(stand.open_tickets_[0], false, "too few");
+  int errors = 0;
+  for (const RunAction& a : actions) {
+    if (a.kind != RunAction::Kind::Log || a.level != RunAction::Level::Error) continue;
+    ++errors;
+    EXPECT_NE(a.text.find("no result after DONE"), std::string::npos) << a.text;
+    EXPECT_NE(a.text.find("the fit failed (too few)"), std::string::npos) << a.text;
+  }
+  EXPECT_EQ(errors, 1);
+}
+
 TEST(CalibrationRun, NewRunRightAfterDoneStillFitsThePreviousOne) {
   FakeStand stand;
   CalibrationRun run(options_for(4));
