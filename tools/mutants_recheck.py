@@ -67,6 +67,7 @@ def find(row, pool):
 
 def run(table_path):
     start = time.time()
+    commit = mutants_sample.commit_of(mutants.REPO)  # the code copied now
     first_lines, rows = read_first_run(table_path)
     survivors = [r for r in rows if r["verdict"] == "SURVIVED"]
     scratch, source, ws, logs = mutants.scratch_layout()
@@ -95,11 +96,11 @@ def run(table_path):
     lock.turn()
     mutants.build(ws, source, binaries, os.path.join(logs, "restore.build.log"))
     lock.release()
-    write(table_path, first_lines, rows, triage, time.time() - start)
+    write(table_path, first_lines, rows, triage, time.time() - start, commit)
     return 0 if all(t[2] in ("caught", "equivalent") for t in triage) else 1
 
 
-def write(table_path, first_lines, rows, triage, seconds):
+def write(table_path, first_lines, rows, triage, seconds, commit):
     caught_first = sum(1 for r in rows if r["verdict"] == "caught")
     compiled = sum(1 for r in rows if r["verdict"] != "does not compile")
     equiv = sum(1 for r in rows if r["verdict"] == "equivalent")
@@ -112,7 +113,7 @@ def write(table_path, first_lines, rows, triage, seconds):
         "", TRIAGE_HEADING, "",
         "Each survivor of the run above, found again in the code of commit %s and run against the"
         " fast tier with today's tests (%.0f s), or listed in `tools/mutants_equivalent.txt` with"
-        " the reason it cannot be caught." % (mutants_sample.commit_of(mutants.REPO), seconds),
+        " the reason it cannot be caught." % (commit, seconds),
         "", "| # | file | line now | rule | after | verdict now | first failing test, or why"
         " equivalent |", "|---|---|---|---|---|---|---|"]
     for row, m, verdict, detail in triage:

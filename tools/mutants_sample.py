@@ -188,6 +188,7 @@ def run_one(m, index, ws, source, binaries, logs, tier, timeouts, equivalent, pr
 
 def run(n, seed, table_path):
     start_all = time.time()
+    commit = commit_of(mutants.REPO)  # the code copied now; the checkout may move on meanwhile
     scratch, source, ws, logs = mutants.scratch_layout()
     binaries = list(mutants.BINARIES)
     lock = mutants.BuildLock()
@@ -242,7 +243,7 @@ def run(n, seed, table_path):
         "- seed %d, %d mutations drawn from %d made by the rules in %d compiled files (%s)" % (
             seed, len(drawn), len(pool), len(files),
             ", ".join("%s %d" % (r, by_rule[r]) for r in mutant_rules.RULES)),
-        "- commit %s, run %s UTC" % (commit_of(mutants.REPO),
+        "- commit %s, run %s UTC" % (commit,
                                      datetime.datetime.utcnow().strftime("%Y-%m-%d %H:%M")),
         "- each mutant built and run against the fast tier (tools/slow_tests.txt left out) of %s"
         " (--gtest_fail_fast); unmutated it takes %s: %.0f s" % (

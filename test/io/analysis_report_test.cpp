@@ -60,6 +60,10 @@ TEST(AnalysisReport, JsonHasContractKeysAndCsvHasOneLinePerResidual) {
   }
   EXPECT_EQ(j["effects"][0]["name"], "quadratic_nonlinearity");
   EXPECT_EQ(j["effects"][0]["target"], "v");
+  // What no residual can show (local gravity, always named) and what was not screened.
+  ASSERT_FALSE(a.unobservable.empty());
+  EXPECT_EQ(j.at("unobservable").get<std::vector<std::string>>(), a.unobservable);
+  EXPECT_EQ(j.at("not_screened").get<std::vector<std::string>>(), a.not_screened);
   for (const char* when : {"before", "after"}) {
     EXPECT_TRUE(j["gap"][when]["reduced_chi2"].is_number()) << when;
     EXPECT_TRUE(j["gap"][when]["rms"].is_number()) << when;

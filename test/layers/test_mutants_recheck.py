@@ -62,7 +62,7 @@ def test_the_rewritten_table_keeps_the_first_run_and_scores_the_triage(tmp_path)
     lines, read = rc.read_first_run(path)
     triage = [(read[1], rows[1][0], "caught", "core_tests: G.called"),
               (read[2], rows[2][0], "equivalent", "a bound never reached")]
-    rc.write(path, lines, read, triage, 12.0)
+    rc.write(path, lines, read, triage, 12.0, "abc")
     text = open(path).read()
     assert text.count(rc.TRIAGE_HEADING) == 1
     assert "(1 caught in the run + 1 caught on recheck) / (3 compiled - 1 equivalent) = 100.0 %" \
@@ -70,7 +70,7 @@ def test_the_rewritten_table_keeps_the_first_run_and_scores_the_triage(tmp_path)
     # A second recheck replaces the triage and keeps the first run's rows.
     lines2, read2 = rc.read_first_run(path)
     assert lines2 == lines and read2 == read
-    rc.write(path, lines2, read2, triage[:1], 1.0)
+    rc.write(path, lines2, read2, triage[:1], 1.0, "abc")
     text = open(path).read()
     assert text.count(rc.TRIAGE_HEADING) == 1 and "1 survivors left" not in text
     assert "(1 caught in the run + 1 caught on recheck) / (3 compiled - 0 equivalent) = 66.7 %" \
