@@ -19,10 +19,14 @@ std::string describe(const GimbalEvent& e) {
 }
 }  // namespace
 
-bool DwellAssembler::Later::operator()(const Event& a, const Event& b) const {
+// The in-order buffer keeps a sample in 32 bytes (docs/noise.md "Where the calibration node's
+// memory goes").
+static_assert(sizeof(ImuSample) == 32, "ImuSample: a stamp and three doubles");
+
+bool DwellAssembler::later(const Key& a, const Key& b) {
   // Min-heap on stamp; at equal stamps a command before a sample, then arrival order.
   if (a.stamp_s != b.stamp_s) return a.stamp_s > b.stamp_s;
-  if (a.is_command() != b.is_command()) return !a.is_command();
+  if (a.command != b.command) return !a.command;
   return a.sequence > b.sequence;
 }
 
@@ -32,7 +36,9 @@ DwellAssembler::DwellAssembler(const AssemblerOptions& options) : options_(optio
 
 void DwellAssembler::reset() {
   pending_ = decltype(pending_)();
-  in_order_.clear();
+  runs_.clear();
+  in_order_samples_.clear();
+  in_order_events_.clear();
   next_sequence_ = 0;
   newest_stamp_s_ = kNegInf;
   released_until_s_ = kNegInf;
@@ -74,7 +80,7 @@ CompletedRows DwellAssembler::add_sample(const ImuSample& sample) {
     ++counters_.dropped_late;
     return out;
   }
-  push(Event{sample.stamp_s, next_sequence_++, sample}, &out);
+  push_sample(sample, &out);
   return out;
 }
 
@@ -95,12 +101,44 @@ void DwellAssembler::push(Event event, CompletedRows* out) {
     process(event, out);  // a late command: best effort, already counted
     return;
   }
-  if (in_order_.empty() || !Later()(in_order_.back(), event)) {
-    in_order_.push_back(std::move(event));
+  if (runs_.empty() || !later(in_order_back(), key(event))) {
+    runs_.push_back(Run{event.sequence, 0});
+    in_order_events_.push_back(std::move(event));
   } else {
     pending_.push(std::move(event));
   }
   release_until(newest_stamp_s_ - options_.reorder_window_s, out);
+}
+
+// push() for a sample (never late here: add_sample drops those), without making it an Event
+// unless it goes to the heap.
+void DwellAssembler::push_sample(const ImuSample& sample, CompletedRows* out) {
+  const std::uint64_t sequence = next_sequence_++;
+  if (sample.stamp_s > newest_stamp_s_) newest_stamp_s_ = sample.stamp_s;
+  if (runs_.empty() || !later(in_order_back(), Key{sample.stamp_s, false, sequence})) {
+    Run* run = runs_.empty() ? nullptr : &runs_.back();
+    if (run && run->samples != 0 && run->first_sequence + run->samples == sequence) {
+      ++run->samples;
+    } else {
+      runs_.push_back(Run{sequence, 1});
+    }
+    in_order_samples_.push_back(sample);
+  } else {
+    pending_.push(Event{sample.stamp_s, sequence, sample});
+  }
+  release_until(newest_stamp_s_ - options_.reorder_window_s, out);
+}
+
+DwellAssembler::Key DwellAssembler::in_order_front() const {
+  const Run& run = runs_.front();
+  if (run.samples == 0) return key(in_order_events_.front());
+  return Key{in_order_samples_.front().stamp_s, false, run.first_sequence};
+}
+
+DwellAssembler::Key DwellAssembler::in_order_back() const {
+  const Run& run = runs_.back();
+  if (run.samples == 0) return key(in_order_events_.back());
+  return Key{in_order_samples_.back().stamp_s, false, run.first_sequence + run.samples - 1};
 }
 
 CompletedRows DwellAssembler::flush_until(double stamp_s) {
@@ -115,18 +153,35 @@ CompletedRows DwellAssembler::flush() {
 
 void DwellAssembler::release_until(double stamp_s, CompletedRows* out) {
   while (!pending_empty()) {
-    // The earlier of the two fronts (Later: a strict total order, sequences are unique).
+    // The earlier of the two fronts (later(): a strict total order, sequences are unique).
     const bool from_heap =
-        in_order_.empty() || (!pending_.empty() && Later()(in_order_.front(), pending_.top()));
-    if ((from_heap ? pending_.top() : in_order_.front()).stamp_s > stamp_s) break;
-    const Event event = from_heap ? pending_.top() : std::move(in_order_.front());
+        runs_.empty() || (!pending_.empty() && later(in_order_front(), key(pending_.top())));
     if (from_heap) {
+      if (pending_.top().stamp_s > stamp_s) break;
+      const Event event = pending_.top();
       pending_.pop();
+      if (event.stamp_s > released_until_s_) released_until_s_ = event.stamp_s;
+      process(event, out);
+    } else if (runs_.front().samples == 0) {
+      if (in_order_events_.front().stamp_s > stamp_s) break;
+      const Event event = std::move(in_order_events_.front());
+      in_order_events_.pop_front();
+      runs_.pop_front();
+      if (event.stamp_s > released_until_s_) released_until_s_ = event.stamp_s;
+      process(event, out);
     } else {
-      in_order_.pop_front();
+      if (in_order_samples_.front().stamp_s > stamp_s) break;
+      const ImuSample sample = in_order_samples_.front();
+      in_order_samples_.pop_front();
+      Run& run = runs_.front();
+      if (--run.samples == 0) {
+        runs_.pop_front();
+      } else {
+        ++run.first_sequence;
+      }
+      if (sample.stamp_s > released_until_s_) released_until_s_ = sample.stamp_s;
+      process_released_sample(sample);
     }
-    if (event.stamp_s > released_until_s_) released_until_s_ = event.stamp_s;
-    process(event, out);
   }
   if (stamp_s > released_until_s_ && pending_empty() && std::isfinite(stamp_s))
     released_until_s_ = stamp_s;
@@ -137,26 +192,30 @@ void DwellAssembler::process(const Event& event, CompletedRows* out) {
     if (observe_command_) observe_command_(*command);
     process_command(*command, out);
   } else if (const auto* reading = std::get_if<ChannelSample>(&event.payload)) {
+    if (observe_channel_) observe_channel_(*reading);
     process_channel(*reading);
   } else {
-    const ImuSample& sample = std::get<ImuSample>(event.payload);
-    // Released in stamp order, so a sample with the stamp of the previous one is a copy (the
-    // same values: a duplicated message, used once) or a conflict (a clock that went back).
-    if (sample.stamp_s == last_sample_stamp_s_) {
-      if (sample.outputs == last_sample_outputs_) {
-        ++counters_.duplicates;
-      } else {
-        ++counters_.dropped_backwards;
-      }
-      return;
-    }
-    if (sample.stamp_s > last_sample_stamp_s_) {
-      last_sample_stamp_s_ = sample.stamp_s;
-      last_sample_outputs_ = sample.outputs;
-    }
-    if (observe_sample_) observe_sample_(sample);
-    process_sample(sample);
+    process_released_sample(std::get<ImuSample>(event.payload));
   }
+}
+
+void DwellAssembler::process_released_sample(const ImuSample& sample) {
+  // Released in stamp order, so a sample with the stamp of the previous one is a copy (the
+  // same values: a duplicated message, used once) or a conflict (a clock that went back).
+  if (sample.stamp_s == last_sample_stamp_s_) {
+    if (sample.outputs == last_sample_outputs_) {
+      ++counters_.duplicates;
+    } else {
+      ++counters_.dropped_backwards;
+    }
+    return;
+  }
+  if (sample.stamp_s > last_sample_stamp_s_) {
+    last_sample_stamp_s_ = sample.stamp_s;
+    last_sample_outputs_ = sample.outputs;
+  }
+  if (observe_sample_) observe_sample_(sample);
+  process_sample(sample);
 }
 
 void DwellAssembler::process_command(const GimbalEvent& command, CompletedRows* out) {
@@ -261,7 +320,8 @@ void DwellAssembler::close_dwell(double end_stamp_s, CompletedRows* out) {
 }
 
 std::size_t DwellAssembler::memory_bytes() const {
-  return sizeof(*this) + buffered_events() * sizeof(Event) +
+  return sizeof(*this) + in_order_samples_.size() * sizeof(ImuSample) + runs_.size() * sizeof(Run) +
+         (in_order_events_.size() + pending_.size()) * sizeof(Event) +
          table_.rows.capacity() * sizeof(DwellRecord);
 }
 

@@ -93,6 +93,12 @@ class DwellAssembler {
     observe_command_ = std::move(on_command);
     observe_sample_ = std::move(on_sample);
   }
+  // Called for every channel reading as it is released in stamp order (before it is assigned to
+  // a dwell): with the two above, the whole release order.
+  using ChannelObserver = std::function<void(const ChannelSample&)>;
+  void set_channel_observer(ChannelObserver on_channel) {
+    observe_channel_ = std::move(on_channel);
+  }
 
   // Each input returns the dwells it completed (most calls: none).
   CompletedRows add_command(const GimbalEvent& event);
@@ -115,7 +121,9 @@ class DwellAssembler {
   bool current_dwell(Phase* phase, std::uint32_t* step, std::uint64_t* samples) const;
   // Events waiting in the reorder buffer (at most reorder window x message rate) and the bytes
   // it and the table hold: the test of memory that does not grow with a dwell's length.
-  std::size_t buffered_events() const { return in_order_.size() + pending_.size(); }
+  std::size_t buffered_events() const {
+    return in_order_samples_.size() + in_order_events_.size() + pending_.size();
+  }
   std::size_t memory_bytes() const;
 
  private:
@@ -131,14 +139,33 @@ class DwellAssembler {
     std::uint64_t count = 0;
     double value(Aggregate aggregate) const;
   };
+  // Where an event goes in the release order: stamp, then commands first, then arrival.
+  struct Key {
+    double stamp_s;
+    bool command;
+    std::uint64_t sequence;
+  };
+  static bool later(const Key& a, const Key& b);
+  static Key key(const Event& e) { return Key{e.stamp_s, e.is_command(), e.sequence}; }
   struct Later {
-    bool operator()(const Event& a, const Event& b) const;
+    bool operator()(const Event& a, const Event& b) const { return later(key(a), key(b)); }
+  };
+  // A stretch of the in-order buffer: one command or channel reading (the front of
+  // in_order_events_), or `samples` IMU samples (in_order_samples_) whose arrival sequences are
+  // first_sequence, first_sequence + 1, ...: a sample's sequence without storing it.
+  struct Run {
+    std::uint64_t first_sequence;
+    std::uint64_t samples;  // 0: one event of in_order_events_
   };
 
   // Completed dwells are appended to `out`.
   void push(Event event, CompletedRows* out);
+  void push_sample(const ImuSample& sample, CompletedRows* out);
+  Key in_order_front() const;
+  Key in_order_back() const;
   void release_until(double stamp_s, CompletedRows* out);
   void process(const Event& event, CompletedRows* out);
+  void process_released_sample(const ImuSample& sample);
   void process_command(const GimbalEvent& command, CompletedRows* out);
   void process_sample(const ImuSample& sample);
   void process_channel(const ChannelSample& reading);
@@ -147,13 +174,19 @@ class DwellAssembler {
   AssemblerOptions options_;
   CommandObserver observe_command_;
   SampleObserver observe_sample_;
+  ChannelObserver observe_channel_;
   // The reorder buffer. Events that arrive in order (the common case: every message of a
-  // driver) are appended to in_order_, already sorted; only those that arrive before an earlier
-  // one go to the heap. Released: the earlier of the two fronts, so the order is the heap's
-  // alone (stamp, commands first, arrival), at O(1) per in-order event instead of O(log n).
-  std::deque<Event> in_order_;
+  // driver) are appended to the in-order part, already sorted; only those that arrive before an
+  // earlier one go to the heap. Released: the earlier of the two fronts, so the order is the
+  // heap's alone (stamp, commands first, arrival), at O(1) per in-order event instead of
+  // O(log n). The in-order part holds its IMU samples as they are (32 bytes: stamp and outputs,
+  // no sequence, no variant) and, in runs_, the order of samples and other events; a run of
+  // samples gives each its sequence back. The heap (rare) holds whole events.
+  std::deque<Run> runs_;
+  std::deque<ImuSample> in_order_samples_;
+  std::deque<Event> in_order_events_;
   std::priority_queue<Event, std::vector<Event>, Later> pending_;
-  bool pending_empty() const { return in_order_.empty() && pending_.empty(); }
+  bool pending_empty() const { return runs_.empty() && pending_.empty(); }
   std::uint64_t next_sequence_ = 0;
   double newest_stamp_s_;
   double released_until_s_;
