@@ -573,12 +573,19 @@ TEST(SerialPort, WorksOnFileDescriptorZero) {
   EXPECT_EQ(reply, "ok");
 }
 
-TEST(Recover, GrblAlarmIsHomedAwayAndTheStageMovesAgain) {
+namespace {
+// A GRBL that must be homed and raises ALARM:1 on its first move.
+ai::EmulatorOptions alarm_on_first_move() {
   ai::EmulatorOptions e = fast();
   e.needs_homing = true;
   e.fault = "alarm";
   e.fault_after = 0;
-  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  return e;
+}
+}  // namespace
+
+TEST(Recover, GrblAlarmIsHomedAwayAndTheStageMovesAgain) {
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(alarm_on_first_move())));
   ai::SerialGimbalOptions o = two_axis(emu->port(), "X", "Y");
   o.home_at_start = true;
   ai::GrblDriver driver(o);
@@ -594,11 +601,7 @@ TEST(Recover, GrblAlarmIsHomedAwayAndTheStageMovesAgain) {
 // After a recovery the stage is where the device says (homed: 0 deg), not at the target of
 // the move that faulted: the first update reads the device, however recent the faulted poll.
 TEST(Recover, TheFirstUpdateAfterARecoveryReportsTheHomedStage) {
-  ai::EmulatorOptions e = fast();
-  e.needs_homing = true;
-  e.fault = "alarm";
-  e.fault_after = 0;
-  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(alarm_on_first_move())));
   ai::SerialGimbalOptions o = two_axis(emu->port(), "X", "Y");
   o.home_at_start = true;
   o.poll_interval_s = 2.0;  // the recovery (0.2 s homing) is over well within one interval
@@ -610,11 +613,7 @@ TEST(Recover, TheFirstUpdateAfterARecoveryReportsTheHomedStage) {
 }
 
 TEST(Recover, GrblAlarmIsUnlockedOnlyWhenConfigured) {
-  ai::EmulatorOptions e = fast();
-  e.needs_homing = true;
-  e.fault = "alarm";
-  e.fault_after = 0;
-  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  Served emu(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(alarm_on_first_move())));
   ai::SerialGimbalOptions o = two_axis(emu->port(), "X", "Y");
   o.unlock_at_start = true;
   ai::GrblDriver driver(o);
