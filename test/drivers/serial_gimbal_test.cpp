@@ -625,7 +625,7 @@ TEST(Recover, GrblAlarmIsUnlockedOnlyWhenConfigured) {
   EXPECT_EQ(fault_of_move(driver, target(Phase::X, 60.0)), "");
 
   // Neither homing nor unlocking allowed: the recovery fails and says what to do.
-  Served emu2(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(e)));
+  Served emu2(std::unique_ptr<ai::DeviceEmulator>(new ai::GrblEmulator(alarm_on_first_move())));
   ai::SerialGimbalOptions o2 = two_axis(emu2->port(), "X", "Y");
   o2.home_at_start = true;
   ai::GrblDriver driver2(o2);
