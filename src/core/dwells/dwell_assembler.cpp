@@ -129,6 +129,10 @@ void DwellAssembler::push_sample(const ImuSample& sample, CompletedRows* out) {
   release_until(newest_stamp_s_ - options_.reorder_window_s, out);
 }
 
+void DwellAssembler::note_released(double stamp_s) {
+  if (stamp_s > released_until_s_) released_until_s_ = stamp_s;
+}
+
 DwellAssembler::Key DwellAssembler::in_order_front() const {
   const Run& run = runs_.front();
   if (run.samples == 0) return key(in_order_events_.front());
@@ -160,14 +164,14 @@ void DwellAssembler::release_until(double stamp_s, CompletedRows* out) {
       if (pending_.top().stamp_s > stamp_s) break;
       const Event event = pending_.top();
       pending_.pop();
-      if (event.stamp_s > released_until_s_) released_until_s_ = event.stamp_s;
+      note_released(event.stamp_s);
       process(event, out);
     } else if (runs_.front().samples == 0) {
       if (in_order_events_.front().stamp_s > stamp_s) break;
       const Event event = std::move(in_order_events_.front());
       in_order_events_.pop_front();
       runs_.pop_front();
-      if (event.stamp_s > released_until_s_) released_until_s_ = event.stamp_s;
+      note_released(event.stamp_s);
       process(event, out);
     } else {
       if (in_order_samples_.front().stamp_s > stamp_s) break;
@@ -179,7 +183,7 @@ void DwellAssembler::release_until(double stamp_s, CompletedRows* out) {
       } else {
         ++run.first_sequence;
       }
-      if (sample.stamp_s > released_until_s_) released_until_s_ = sample.stamp_s;
+      note_released(sample.stamp_s);
       process_released_sample(sample);
     }
   }

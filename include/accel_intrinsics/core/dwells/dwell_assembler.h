@@ -164,6 +164,7 @@ class DwellAssembler {
   Key in_order_front() const;
   Key in_order_back() const;
   void release_until(double stamp_s, CompletedRows* out);
+  void note_released(double stamp_s);  // released_until_s_ up to an event just released
   void process(const Event& event, CompletedRows* out);
   void process_released_sample(const ImuSample& sample);
   void process_command(const GimbalEvent& command, CompletedRows* out);
