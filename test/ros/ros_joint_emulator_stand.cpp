@@ -82,11 +82,19 @@ TEST(RosJointEmulatorStand, NewcomersRunPassesTheGate) {
   for (int p = 0; p < 3; ++p) EXPECT_EQ(res.result.positions[p], static_cast<unsigned>(steps));
 
   std::lock_guard<std::mutex> lock(heard.mutex);
-  // JointState at rate_hz of the stand's clock.
+  // JointState at rate_hz of the stand's clock. The typical spacing is the period; the mean rate
+  // may fall short of it, because a ros::Timer on a busy machine skips ticks it missed rather than
+  // firing them late (CI once heard 39.7 Hz of 50: a loaded machine, not a wrong period).
   ASSERT_GT(heard.stamps_s.size(), 100u);
+  std::vector<double> spacing_s;
+  for (std::size_t i = 1; i < heard.stamps_s.size(); ++i)
+    spacing_s.push_back(heard.stamps_s[i] - heard.stamps_s[i - 1]);
+  std::nth_element(spacing_s.begin(), spacing_s.begin() + spacing_s.size() / 2, spacing_s.end());
+  const double median_spacing_s = spacing_s[spacing_s.size() / 2];
+  EXPECT_NEAR(median_spacing_s, 1.0 / rate_hz, 0.1 / rate_hz);
   const double span_s = heard.stamps_s.back() - heard.stamps_s.front();
   const double measured_hz = (heard.stamps_s.size() - 1) / span_s;
-  EXPECT_GT(measured_hz, 0.8 * rate_hz);
+  EXPECT_GT(measured_hz, 0.5 * rate_hz) << "more than half the ticks skipped";
   EXPECT_LT(measured_hz, 1.1 * rate_hz);
   EXPECT_LE(heard.max_speed_deg_s, max_speed_deg_s * (1.0 + 1e-9));
   EXPECT_GT(heard.max_speed_deg_s, 0.5 * max_speed_deg_s) << "the large moves run at the limit";
