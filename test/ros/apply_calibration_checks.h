@@ -138,6 +138,13 @@ TEST(ApplyCalibration, CorrectedDwellMeansEqualTheTrueForce) {
     shifted.stamp_s += kStampOffset;
     pub.publish(ai::to_msg(shifted, "dut"));
     if (++sent % 50 == 0) ros::WallDuration(0.002).sleep();  // ~25 kHz: no queue overflows
+    // Flow control: the node's queues hold 5000 messages; a loaded machine can starve it for
+    // longer than they last at 25 kHz, so the test keeps at most 2000 in flight.
+    if (sent % 1000 == 0) {
+      const ros::WallTime catch_up = ros::WallTime::now() + ros::WallDuration(30.0);
+      while (received.size() + 2000 < sent && ros::WallTime::now() < catch_up)
+        ros::WallDuration(0.005).sleep();
+    }
   }
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(30.0);
   while (received.size() < sent && ros::WallTime::now() < deadline) ros::WallDuration(0.05).sleep();

@@ -78,12 +78,13 @@ TEST(KillInDwell, RestartInsideAChosenDwellLosesNothingAndDiscardsNothing) {
       nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status);
   ros::Subscriber c = nh.subscribe("/gimbal/command", 1000, on_cmd);
   ros::Subscriber i = nh.subscribe("/imu/data_raw", 100000, on_imu);
-  stand_checks::reset_and_start();
+  stand_checks::reset_and_start({&c, &i});
   if (HasFatalFailure()) return;
 
   // The SETTLED of the chosen position: hold the clock there (the stand stops inside the dwell).
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
-  hold_clock_in_dwell(kill_position, steps, deadline);
+  // The cut dwell (dwell_s 2 s) must not be complete when the clock stops: 1.5 s leaves 0.5 s.
+  hold_clock_in_dwell(kill_position, steps, deadline, 1.5);
   if (HasFatalFailure()) return;
   const std::size_t commands_at_kill = commands_seen();
   // The checkpoint as the killed node leaves it: the run continues after its last row.

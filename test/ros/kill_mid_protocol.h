@@ -46,10 +46,22 @@ bool settled_at(int position, int steps) {
 }
 // Holds or releases the simulated clock (sim_clock ~pause); *at_s: the clock's time then (its
 // answer: "paused at 123.456000 s").
+// A persistent connection to sim_clock ~pause, made before the test waits for its moment: holding
+// the clock then costs no master lookup and no TCP connect (on a loaded machine those took long
+// enough to let the clock run far into the dwell).
+ros::ServiceClient& pause_client() {
+  static ros::ServiceClient client =
+      ros::NodeHandle().serviceClient<std_srvs::SetBool>("/sim_clock/pause", true);
+  return client;
+}
 bool pause_clock(bool pause, double* at_s = nullptr) {
   std_srvs::SetBool srv;
   srv.request.data = pause;
-  if (!ros::service::call("/sim_clock/pause", srv) || !srv.response.success) return false;
+  // A broken persistent connection (never expected: sim_clock is not restarted) falls back to a
+  // one-off call.
+  const bool called = (pause_client().isValid() && pause_client().call(srv)) ||
+                      ros::service::call("/sim_clock/pause", srv);
+  if (!called || !srv.response.success) return false;
   if (at_s) {
     const std::size_t at = srv.response.message.find(" at ");
     if (at == std::string::npos) return false;
@@ -62,9 +74,11 @@ bool pause_clock(bool pause, double* at_s = nullptr) {
 // Waits for the SETTLED of `position` (0-based, protocol order) and holds the simulated clock
 // inside that dwell, at most `max_into_dwell_s` after its start (so the test's margins, in
 // simulated seconds, do not depend on how fast it reacted). Needs on_command subscribed.
+// max_into_dwell_s: the latest stop the caller's expectations allow (its test file says why).
 inline void hold_clock_in_dwell(int position, int steps, const ros::WallTime& deadline,
-                                double max_into_dwell_s = 1.0) {
+                                double max_into_dwell_s) {
   ASSERT_TRUE(ros::service::waitForService("/sim_clock/pause", ros::Duration(10.0)));
+  ASSERT_TRUE(pause_client().isValid()) << "no connection to /sim_clock/pause";
   while (!settled_at(position, steps) && ros::WallTime::now() < deadline) {
     ros::WallDuration(0.005).sleep();
   }
@@ -106,7 +120,7 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   ros::Subscriber s =
       nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status);
   ros::Subscriber c = nh.subscribe("/gimbal/command", 100, on_command);
-  stand_checks::reset_and_start();
+  stand_checks::reset_and_start({&c});
   if (::testing::Test::HasFatalFailure()) return;
 
   // Mid-protocol: SIGKILL. With hold_clock, inside the dwell of position kill_at: the test waits
@@ -115,7 +129,9 @@ inline void kill_mid_protocol_and_check(const std::string& victim) {
   // controller reports position kill_at, in a move or a dwell.
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
   if (hold_clock) {
-    hold_clock_in_dwell(kill_at - 1, steps, deadline);
+    double max_into_dwell_s = 1.0;
+    pnh.getParam("max_into_dwell_s", max_into_dwell_s);
+    hold_clock_in_dwell(kill_at - 1, steps, deadline, max_into_dwell_s);
     if (::testing::Test::HasFatalFailure()) return;
   } else {
     while (ros::WallTime::now() < deadline) {

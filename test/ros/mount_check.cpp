@@ -155,8 +155,9 @@ TEST(MountCheck, EachMistakeNamed) {
     const stand_checks::CommandResult r = check("--imu-topic /imu_test");
     EXPECT_EQ(r.exit_code, 4) << r.output;
     for (const char* name : c.names) {
-      if (name)
+      if (name) {
         EXPECT_NE(r.output.find(name), std::string::npos) << name << " not in:\n" << r.output;
+      }
     }
     EXPECT_NE(r.output.find("fix:"), std::string::npos) << r.output;
   }

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <initializer_list>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -142,11 +143,19 @@ inline void supervise_and_check(const std::vector<std::string>& namespaces, cons
 }
 
 // Waits for the stand's services, then starts a new run: calibration/reset (the next run gets a
-// directory of its own; earlier runs are kept) and gimbal_controller/start.
-inline void reset_and_start() {
+// directory of its own; earlier runs are kept) and gimbal_controller/start. `must_hear`: the
+// test's subscribers that must get the run's first messages; each is waited for (up to 30 s)
+// until it is connected to a publisher (a fixed pause is not enough on a loaded machine).
+inline void reset_and_start(std::initializer_list<const ros::Subscriber*> must_hear = {}) {
   ASSERT_TRUE(ros::service::waitForService("/calibration/get_intrinsics", ros::Duration(60.0)));
   ASSERT_TRUE(ros::service::waitForService("/gimbal_controller/start", ros::Duration(60.0)));
-  ros::WallDuration(1.0).sleep();  // subscriptions connected
+  for (const ros::Subscriber* sub : must_hear) {
+    const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(30.0);
+    while (sub->getNumPublishers() == 0 && ros::WallTime::now() < deadline)
+      ros::WallDuration(0.05).sleep();
+    ASSERT_GT(sub->getNumPublishers(), 0u) << "no publisher of " << sub->getTopic();
+  }
+  ros::WallDuration(1.0).sleep();  // the other subscriptions connected
   std_srvs::Trigger reset, start;
   ASSERT_TRUE(ros::service::call("/calibration/reset", reset));
   ASSERT_TRUE(ros::service::call("/gimbal_controller/start", start));

@@ -78,7 +78,7 @@ TEST(StandPromises, ResumeParamsStartTheRunThereAndResetKeepsTheRun) {
       nh.subscribe("/calibration/status", 10, &test_wait::LatestValues::on_message, &status_value);
   // A reset keeps earlier runs: an earlier invocation's run must not pass for this one's.
   std::filesystem::remove_all(output_dir + "/unnamed");
-  stand_checks::reset_and_start();
+  stand_checks::reset_and_start({&c});
   if (HasFatalFailure()) return;
   const std::string table = run_dirs::latest(output_dir) + "/position_table.csv";
   const std::string state = run_dirs::latest(output_dir) + "/calibration_state.yaml";
