@@ -396,6 +396,79 @@ TEST(Discrepancy, SlowPartFromRunProjectsOutEveryParameterOfTheBaseModel) {
   }
 }
 
+// The gap's trend_z is the z-statistic of the slope of the normalized residuals against time:
+// sum (t - mean t) z / sqrt(sum (t - mean t)^2), which has unit variance without a trend and no
+// unit. The run is written here from eq. (4) (R = S g f(angle) + O, 3 phases x 12 steps of 2 s),
+// with white noise and a drift of u; z is formed here from the fit's S and O. The same run with
+// its clock in minutes instead of seconds (the fit has no time term) gives the same statistics.
+TEST(Discrepancy, TrendZIsTheSlopeStatisticOfTheNormalizedResidualsInAnyTimeUnit) {
+  auto unit_force = [](Phase p, double a) {
+    switch (p) {
+      case Phase::X: return Eigen::Vector3d(0.0, std::sin(a), std::cos(a));
+      case Phase::Y: return Eigen::Vector3d(std::sin(a), 0.0, std::cos(a));
+      default: return Eigen::Vector3d(std::sin(a), std::cos(a), 0.0);
+    }
+  };
+  Eigen::Matrix3d S;
+  S << 1.02, 0.011, -0.014, -0.008, 0.991, 0.017, 0.012, -0.006, 1.007;
+  const Eigen::Vector3d O(0.08, -0.15, 0.11);
+  const double g = kStandardGravity, sample_std = 0.01, drift = 4e-5;  // m/s^2 per s of u
+  const std::uint64_t n = 400;
+  const double se = sample_std / std::sqrt(static_cast<double>(n));
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  PositionTable table;
+  const Phase phases[] = {Phase::X, Phase::Y, Phase::Z};
+  double t = 0.0;
+  for (Phase phase : phases) {
+    for (std::uint32_t step = 0; step < 12; ++step) {
+      DwellRecord r;
+      r.phase = phase;
+      r.step = step;
+      r.angle_rad = 2.0 * M_PI * step / 12.0;
+      r.t_start_s = t + 1.0;
+      r.t_end_s = t + 3.0;
+      r.n = n;
+      r.std = Eigen::Vector3d::Constant(sample_std);
+      r.mean = S * (g * unit_force(phase, r.angle_rad)) + O +
+               se * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
+      r.mean.x() += drift * (t + 2.0);
+      table.rows.push_back(r);
+      t += 3.0;
+    }
+  }
+  const FitResult f = fit(table);
+  const Gap gap = compute_gap(table, f);
+  double t_mean = 0.0;
+  for (const DwellRecord& r : table.rows) t_mean += 0.5 * (r.t_start_s + r.t_end_s);
+  t_mean /= static_cast<double>(table.rows.size());
+  double stt = 0.0;
+  Eigen::Vector3d stz = Eigen::Vector3d::Zero();
+  for (const DwellRecord& r : table.rows) {
+    const double dt = 0.5 * (r.t_start_s + r.t_end_s) - t_mean;
+    const Eigen::Vector3d z = (r.mean - f.S * (g * unit_force(r.phase, r.angle_rad)) - f.O) / se;
+    stt += dt * dt;
+    stz += dt * z;
+  }
+  for (int s = 0; s < 3; ++s) {
+    const double expected = stz(s) / std::sqrt(stt);
+    EXPECT_NEAR(gap.trend_z[s], expected, 1e-6 * (1.0 + std::abs(expected))) << "axis " << s;
+  }
+  EXPECT_GT(gap.trend_z[0], 5.0) << "the drift of u is not seen";
+  EXPECT_LT(std::abs(gap.trend_z[1]), 4.0);
+  EXPECT_LT(std::abs(gap.trend_z[2]), 4.0);
+
+  PositionTable minutes = table;
+  for (DwellRecord& r : minutes.rows) {
+    r.t_start_s /= 60.0;
+    r.t_end_s /= 60.0;
+  }
+  const Gap in_minutes = compute_gap(minutes, fit(minutes));
+  for (int s = 0; s < 3; ++s)
+    EXPECT_NEAR(in_minutes.trend_z[s], gap.trend_z[s], 1e-9 * (1.0 + std::abs(gap.trend_z[s])))
+        << "axis " << s;
+}
+
 }  // namespace
 }  // namespace core
 }  // namespace accel_intrinsics
