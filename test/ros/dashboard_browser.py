@@ -9,10 +9,10 @@ result file (intrinsics.yaml, the keys of offline_fit's JSON) to the digits prin
 (SIGKILL) mid-run, shows as lost, not before the dashboard's lost_after_s of silence (counted
 from the last message of rig2 this test heard, less ~heard_tolerance_s) and within lost_after_s
 + its discovery period + ~lost_slack_s of the kill; its device serial, a piece of HTML, shows as
-text; the browser's console
-holds no error. rig1's serial, also HTML, shows as text in the lab archive's view once its
-calibration node archived the result, and so does each rig's control chart (six canvases with
-points) of /dashboard/check_standards. The page at the end is saved as a PNG (~screenshot).
+text; the browser's console holds no error. rig1's serial, also HTML, shows as text in the lab
+archive's view once its calibration node archived the result, and so does each rig's control
+chart (six canvases with points) of /dashboard/check_standards. The page at the end is saved as
+a PNG (~screenshot).
 """
 
 import csv
