@@ -163,6 +163,16 @@ TEST(MountCheck, EachMistakeNamed) {
   }
 }
 
+TEST(MountCheck, ImuTopicWithoutPublisherIsNamed) {
+  wait_for_stand();
+  // Nobody publishes /imu_nobody: supervise waits for a connection (bounded), says so and
+  // goes on; the check then names the IMU silent.
+  const stand_checks::CommandResult r = check("--imu-topic /imu_nobody");
+  EXPECT_EQ(r.exit_code, 4) << r.output;
+  EXPECT_NE(r.output.find("no publisher of /imu_nobody connected"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("imu_silent"), std::string::npos) << r.output;
+}
+
 TEST(MountCheck, NoGimbalCouldNotRun) {
   const stand_checks::CommandResult r = stand_checks::run(
       "rosrun accel_intrinsics supervise --check-mount --service-timeout 1 "
