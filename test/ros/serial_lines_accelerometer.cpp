@@ -195,9 +195,9 @@ TEST(SerialLinesAccelerometer, PublishesTheDevicesSamplesWithDeviceTimeAndSurviv
   std::mt19937_64 rng(17);
   int garbled = 0;
   const double host0 = ros::WallTime::now().toSec() + 0.05;
-  // 8 s of lines: the clock rate is the slope through the minima of 0.25 s bins, ~31 of them
-  // (3 s gave ~11: for the same scatter of the minima, a slope about 4.7 times noisier).
-  std::map<long, Truth> truth = play(pty, host0, 0, 4000, &rng, &garbled);
+  // 10 s of lines: the clock rate is the slope through the minima of 0.25 s bins, ~39 of them
+  // (3 s gave ~11: for the same scatter of the minima, a slope about 6.7 times noisier).
+  std::map<long, Truth> truth = play(pty, host0, 0, 5000, &rng, &garbled);
   ASSERT_TRUE(test_wait::wait_for([&] { return received.size() >= truth.size() - 1; }, 10.0,
                                   "every sample but the first"));
   ASSERT_TRUE(test_wait::wait_for(
