@@ -5,9 +5,13 @@
 #include <pty.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
+#include <sys/prctl.h>
 #include <termios.h>
+#include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -108,6 +112,20 @@ class Pty {
   int master_ = -1, slave_ = -1;
 };
 
+// Sleeps to the absolute wall time t_s (ros::WallTime's clock, CLOCK_REALTIME), with a timer
+// slack of 1 ns while it sleeps (a normal thread's timed sleeps may end 50 us late by default):
+// the device writes on a deadline, not after a duration computed before it was preempted.
+void sleep_until_wall(double t_s) {
+  const int slack = ::prctl(PR_GET_TIMERSLACK, 0, 0, 0, 0);
+  ::prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);
+  timespec deadline{};
+  deadline.tv_sec = static_cast<time_t>(std::floor(t_s));
+  deadline.tv_nsec = std::min(999999999L, static_cast<long>((t_s - std::floor(t_s)) * 1e9));
+  while (::clock_nanosleep(CLOCK_REALTIME, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
+  }
+  if (slack > 0) ::prctl(PR_SET_TIMERSLACK, static_cast<unsigned long>(slack), 0, 0, 0);
+}
+
 struct Truth {
   double host_s;
   std::string y, z;  // as printed
@@ -126,8 +144,7 @@ std::map<long, Truth> play(Pty& pty, double host0, long k0, long k1, std::mt1993
   for (long k = k0; k < k1; ++k) {
     const double device_s = k / 500.0;
     const double host = host0 + device_s / (1.0 + 1e-4);
-    const double wait = host + jitter(*rng) - ros::WallTime::now().toSec();
-    if (wait > 0) ros::WallDuration(wait).sleep();
+    sleep_until_wall(host + jitter(*rng));
     char y[32], z[32], line[128];
     std::snprintf(y, sizeof y, "%.5f", -0.5 + 1e-3 * (k % 101));
     std::snprintf(z, sizeof z, "%.0f", 16384.0 + (k % 7));  // counts: any unit
@@ -178,7 +195,9 @@ TEST(SerialLinesAccelerometer, PublishesTheDevicesSamplesWithDeviceTimeAndSurviv
   std::mt19937_64 rng(17);
   int garbled = 0;
   const double host0 = ros::WallTime::now().toSec() + 0.05;
-  std::map<long, Truth> truth = play(pty, host0, 0, 1500, &rng, &garbled);
+  // 10 s of lines: the clock rate is the slope through the minima of 0.25 s bins, ~39 of them
+  // (3 s gave ~11: for the same scatter of the minima, a slope about 6.7 times noisier).
+  std::map<long, Truth> truth = play(pty, host0, 0, 5000, &rng, &garbled);
   ASSERT_TRUE(test_wait::wait_for([&] { return received.size() >= truth.size() - 1; }, 10.0,
                                   "every sample but the first"));
   ASSERT_TRUE(test_wait::wait_for(
@@ -189,7 +208,13 @@ TEST(SerialLinesAccelerometer, PublishesTheDevicesSamplesWithDeviceTimeAndSurviv
   EXPECT_EQ(as_long(diag.value("garbled_binary")), garbled / 3 + (garbled % 3 > 0));
   EXPECT_EQ(as_long(diag.value("garbled_partial")), 1);
   EXPECT_EQ(diag.value("clock_ready"), "true");
-  EXPECT_NEAR(std::stod(diag.value("clock_rate_ppm")), -100.0, 40.0);
+  const double rate_ppm = std::stod(diag.value("clock_rate_ppm"));
+  EXPECT_NEAR(rate_ppm, -100.0, 40.0);
+  char rate_text[32];
+  std::snprintf(rate_text, sizeof rate_text, "%.1f", rate_ppm);
+  RecordProperty("clock_rate_ppm", rate_text);  // in the test's XML result: the margin in CI
+  std::printf("device clock rate seen by the node: %s ppm (-100 +- 40) from %s lines\n", rate_text,
+              diag.value("lines").c_str());
 
   // Unplugged: the diagnostics say lost with the system's words; then back.
   pty.unplug();
