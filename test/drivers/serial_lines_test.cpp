@@ -564,7 +564,9 @@ TEST(SerialLinesSource, ReadsInBatchesWithDeviceTimeAndHandsEverySampleOver) {
   double worst = 0.0;
   for (std::size_t i = 0; i < got.size(); ++i) {
     const long k = std::lround(got[i].outputs.x());
-    if (i > 0) EXPECT_EQ(k, std::lround(got[i - 1].outputs.x()) + 1);
+    if (i > 0) {
+      EXPECT_EQ(k, std::lround(got[i - 1].outputs.x()) + 1);
+    }
     worst = std::max(worst, std::abs(got[i].stamp_s - written.at(k).truth_host_s));
   }
   EXPECT_LT(worst, 1e-3) << "worst stamp error " << worst * 1e3 << " ms";
