@@ -84,7 +84,9 @@ TEST(EffectsFit, DriftTermFitIsTheClosedFormLeastSquaresEstimate) {
       EXPECT_NEAR(f.S(s, j), b(j), 1e-6 * std_s) << "S(" << s << ", " << j << ")";
     }
     EXPECT_NEAR(f.O(s), b(3), 1e-6 * f.O_std(s)) << "O(" << s << ")";
-    if (s == 2) EXPECT_NEAR(f.effects[0].value, b(4), 1e-6 * f.effects_std[0]) << "drift of w";
+    if (s == 2) {
+      EXPECT_NEAR(f.effects[0].value, b(4), 1e-6 * f.effects_std[0]) << "drift of w";
+    }
   }
   // The drift is seen (about 2 standard uncertainties) and the estimate is near the truth.
   EXPECT_NEAR(f.effects[0].value, drift, 4.0 * f.effects_std[0]);
