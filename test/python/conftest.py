@@ -1,4 +1,4 @@
-"""Fixtures of the archive tests: the archive URL on each backend.
+"""Fixtures: the archive URL on each backend (archive tests); supervise as a module.
 
 `archive_url` runs every test that takes it twice: on a fresh SQLite file, and on a fresh database
 of a real PostgreSQL server that this session starts itself (initdb in a temporary directory, its
@@ -6,6 +6,8 @@ own port and socket directory, as the `postgres` user when run as root, stopped 
 PostgreSQL runs are skipped, with the reason, only when no server can start here.
 """
 import glob
+import importlib.machinery
+import importlib.util
 import os
 import pwd
 import shutil
@@ -20,6 +22,17 @@ import pytest
 SCRIPTS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
     os.path.realpath(__file__)))), "scripts")
 sys.path.insert(0, SCRIPTS)
+
+
+@pytest.fixture(scope="module")
+def supervise():
+    """scripts/supervise loaded as a module (it has no .py name to import by)."""
+    loader = importlib.machinery.SourceFileLoader("supervise_script",
+                                                  os.path.join(SCRIPTS, "supervise"))
+    spec = importlib.util.spec_from_loader("supervise_script", loader)
+    module = importlib.util.module_from_spec(spec)
+    loader.exec_module(module)
+    return module
 
 
 def _postgres_bin(name):

@@ -4,25 +4,10 @@ handshake, not when rospy first counts the connection (it does so before the han
 thread then makes). The subscribers are written here as rospy lays them out (get_num_connections,
 impl.connections, each connection's header: None until the publisher's header was read); no ROS
 master is needed. On a stand: test/ros/mount_check.test (ImuTopicWithoutPublisherIsNamed)."""
-import importlib.machinery
-import importlib.util
-import os
 import threading
 import time
 
 import pytest
-
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.realpath(__file__))))
-
-
-@pytest.fixture(scope="module")
-def supervise():
-    loader = importlib.machinery.SourceFileLoader("supervise_script",
-                                                  os.path.join(REPO, "scripts", "supervise"))
-    spec = importlib.util.spec_from_loader("supervise_script", loader)
-    module = importlib.util.module_from_spec(spec)
-    loader.exec_module(module)
-    return module
 
 
 class Connection:

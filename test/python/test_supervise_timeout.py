@@ -3,23 +3,8 @@ expected duration (the gimbal controller's time_left_s when the run starts) and 
 the time the controller waits for the operator (REMOUNT, WAIT_OPERATOR), in the run's own time
 (progress stamps) and, with --timeout, in wall seconds. The progress messages are written here;
 no ROS master is needed (the Rig is built without subscribing)."""
-import importlib.machinery
-import importlib.util
-import os
 
 import pytest
-
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.realpath(__file__))))
-
-
-@pytest.fixture(scope="module")
-def supervise():
-    loader = importlib.machinery.SourceFileLoader("supervise_script",
-                                                  os.path.join(REPO, "scripts", "supervise"))
-    spec = importlib.util.spec_from_loader("supervise_script", loader)
-    module = importlib.util.module_from_spec(spec)
-    loader.exec_module(module)
-    return module
 
 
 class Clock:

@@ -19,6 +19,7 @@
 #include "../../support/analysis_checks.h"
 #include "../../support/random_device.h"
 #include "../../support/statistical_bounds.h"
+#include "../../support/written_runs.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/fit/fit.h"
@@ -321,23 +322,7 @@ TEST(Discrepancy, DetectionThresholdFromNoncentralChiSquare) {
 // model's prediction. The run is written here: 3 phases x 8 steps of 2 s, a random walk added to
 // every dwell mean.
 TEST(Discrepancy, SlowPartFromRunProjectsOutEveryParameterOfTheBaseModel) {
-  PositionTable table;
-  const Phase phases[] = {Phase::X, Phase::Y, Phase::Z};
-  double t = 0.0;
-  for (Phase phase : phases) {
-    for (std::uint32_t step = 0; step < 8; ++step) {
-      DwellRecord r;
-      r.phase = phase;
-      r.step = step;
-      r.angle_rad = 2.0 * M_PI * step / 8.0;
-      r.t_start_s = t + 1.0;
-      r.t_end_s = t + 3.0;
-      r.n = 200;
-      r.std = Eigen::Vector3d::Constant(0.01);
-      table.rows.push_back(r);
-      t += 3.0;
-    }
-  }
+  PositionTable table = written_runs::three_phase_table(8, 200, 0.01);
   Device truth;
   truth.S << 1.01, 0.002, -0.003, 0.001, 0.99, 0.004, -0.002, 0.003, 1.02;
   truth.O << 0.05, -0.03, 0.02;
@@ -402,13 +387,8 @@ TEST(Discrepancy, SlowPartFromRunProjectsOutEveryParameterOfTheBaseModel) {
 // with white noise and a drift of u; z is formed here from the fit's S and O. The same run with
 // its clock in minutes instead of seconds (the fit has no time term) gives the same statistics.
 TEST(Discrepancy, TrendZIsTheSlopeStatisticOfTheNormalizedResidualsInAnyTimeUnit) {
-  auto unit_force = [](Phase p, double a) {
-    switch (p) {
-      case Phase::X: return Eigen::Vector3d(0.0, std::sin(a), std::cos(a));
-      case Phase::Y: return Eigen::Vector3d(std::sin(a), 0.0, std::cos(a));
-      default: return Eigen::Vector3d(std::sin(a), std::cos(a), 0.0);
-    }
-  };
+  using written_runs::mid_time;
+  using written_runs::unit_force;
   Eigen::Matrix3d S;
   S << 1.02, 0.011, -0.014, -0.008, 0.991, 0.017, 0.012, -0.006, 1.007;
   const Eigen::Vector3d O(0.08, -0.15, 0.11);
@@ -417,35 +397,21 @@ TEST(Discrepancy, TrendZIsTheSlopeStatisticOfTheNormalizedResidualsInAnyTimeUnit
   const double se = sample_std / std::sqrt(static_cast<double>(n));
   std::mt19937_64 rng(11);
   std::normal_distribution<double> normal(0.0, 1.0);
-  PositionTable table;
-  const Phase phases[] = {Phase::X, Phase::Y, Phase::Z};
-  double t = 0.0;
-  for (Phase phase : phases) {
-    for (std::uint32_t step = 0; step < 12; ++step) {
-      DwellRecord r;
-      r.phase = phase;
-      r.step = step;
-      r.angle_rad = 2.0 * M_PI * step / 12.0;
-      r.t_start_s = t + 1.0;
-      r.t_end_s = t + 3.0;
-      r.n = n;
-      r.std = Eigen::Vector3d::Constant(sample_std);
-      r.mean = S * (g * unit_force(phase, r.angle_rad)) + O +
-               se * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
-      r.mean.x() += drift * (t + 2.0);
-      table.rows.push_back(r);
-      t += 3.0;
-    }
+  PositionTable table = written_runs::three_phase_table(12, n, sample_std);
+  for (DwellRecord& r : table.rows) {
+    r.mean = S * (g * unit_force(r.phase, r.angle_rad)) + O +
+             se * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
+    r.mean.x() += drift * mid_time(r);
   }
   const FitResult f = fit(table);
   const Gap gap = compute_gap(table, f);
   double t_mean = 0.0;
-  for (const DwellRecord& r : table.rows) t_mean += 0.5 * (r.t_start_s + r.t_end_s);
+  for (const DwellRecord& r : table.rows) t_mean += mid_time(r);
   t_mean /= static_cast<double>(table.rows.size());
   double stt = 0.0;
   Eigen::Vector3d stz = Eigen::Vector3d::Zero();
   for (const DwellRecord& r : table.rows) {
-    const double dt = 0.5 * (r.t_start_s + r.t_end_s) - t_mean;
+    const double dt = mid_time(r) - t_mean;
     const Eigen::Vector3d z = (r.mean - f.S * (g * unit_force(r.phase, r.angle_rad)) - f.O) / se;
     stt += dt * dt;
     stz += dt * z;

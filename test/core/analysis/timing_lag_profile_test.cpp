@@ -18,6 +18,7 @@
 #include <random>
 #include <string>
 
+#include "../../support/written_runs.h"
 #include "accel_intrinsics/core/analysis/raw_stream_analysis.h"
 #include "accel_intrinsics/core/dwells/dwell_assembler.h"
 #include "accel_intrinsics/core/fit/fit.h"
@@ -45,13 +46,7 @@ double fraction(Profile profile, double u) {
   return 1.0 - 2.25 * (1.0 - u) * (1.0 - u);
 }
 
-Eigen::Vector3d unit_force(Phase p, double a) {
-  switch (p) {
-    case Phase::X: return Eigen::Vector3d(0.0, std::sin(a), std::cos(a));
-    case Phase::Y: return Eigen::Vector3d(std::sin(a), 0.0, std::cos(a));
-    default: return Eigen::Vector3d(std::sin(a), std::cos(a), 0.0);
-  }
-}
+using written_runs::unit_force;
 
 struct Streams {
   std::vector<GimbalEvent> commands;

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <random>
 
+#include "../../support/written_runs.h"
 #include "accel_intrinsics/core/fit/fit.h"
 #include "accel_intrinsics/core/model/constants.h"
 
@@ -14,13 +15,8 @@ namespace accel_intrinsics {
 namespace core {
 namespace {
 
-Eigen::Vector3d unit_force(Phase p, double a) {
-  switch (p) {
-    case Phase::X: return Eigen::Vector3d(0.0, std::sin(a), std::cos(a));
-    case Phase::Y: return Eigen::Vector3d(std::sin(a), 0.0, std::cos(a));
-    default: return Eigen::Vector3d(std::sin(a), std::cos(a), 0.0);
-  }
-}
+using written_runs::mid_time;
+using written_runs::unit_force;
 
 // A run written from eq. (4) with a drift of w, R = S g f(angle) + O + d_w (t - t0) e_w + noise
 // (3 phases x 12 steps, dwells of 2 s from t0 = 0, equal standard errors): the fit with an
@@ -36,28 +32,12 @@ TEST(EffectsFit, DriftTermFitIsTheClosedFormLeastSquaresEstimate) {
   const double se = sample_std / std::sqrt(static_cast<double>(n));
   std::mt19937_64 rng(5);
   std::normal_distribution<double> normal(0.0, 1.0);
-  PositionTable table;
+  PositionTable table = written_runs::three_phase_table(12, n, sample_std);
   table.time_origin_s = 0.0;
-  std::vector<double> t_mid;
-  const Phase phases[] = {Phase::X, Phase::Y, Phase::Z};
-  double t = 0.0;
-  for (Phase phase : phases) {
-    for (std::uint32_t step = 0; step < 12; ++step) {
-      DwellRecord r;
-      r.phase = phase;
-      r.step = step;
-      r.angle_rad = 2.0 * M_PI * step / 12.0;
-      r.t_start_s = t + 1.0;
-      r.t_end_s = t + 3.0;
-      r.n = n;
-      r.std = Eigen::Vector3d::Constant(sample_std);
-      t_mid.push_back(t + 2.0);
-      r.mean = S * (g * unit_force(phase, r.angle_rad)) + O +
-               se * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
-      r.mean.z() += drift * t_mid.back();
-      table.rows.push_back(r);
-      t += 3.0;
-    }
+  for (DwellRecord& r : table.rows) {
+    r.mean = S * (g * unit_force(r.phase, r.angle_rad)) + O +
+             se * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
+    r.mean.z() += drift * mid_time(r);
   }
   FitOptions options;
   options.local_gravity = g;
@@ -75,7 +55,7 @@ TEST(EffectsFit, DriftTermFitIsTheClosedFormLeastSquaresEstimate) {
       const DwellRecord& r = table.rows[static_cast<std::size_t>(i)];
       X.block<1, 3>(i, 0) = (g * unit_force(r.phase, r.angle_rad)).transpose();
       X(i, 3) = 1.0;
-      if (s == 2) X(i, 4) = t_mid[static_cast<std::size_t>(i)];
+      if (s == 2) X(i, 4) = mid_time(r);
       y(i) = r.mean(s);
     }
     const Eigen::VectorXd b = X.colPivHouseholderQr().solve(y);
