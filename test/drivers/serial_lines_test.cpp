@@ -6,14 +6,12 @@
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <pty.h>
-#include <sys/prctl.h>
 #include <termios.h>
 #include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
-#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -25,6 +23,7 @@
 #include <random>
 #include <thread>
 
+#include "../support/precise_sleep.h"
 #include "accel_intrinsics/drivers/device_clock_fit.h"
 #include "accel_intrinsics/drivers/serial_line_format.h"
 #include "accel_intrinsics/drivers/serial_lines_source.h"
@@ -50,37 +49,10 @@ double wall_s() {
   return monotonic_s() - start;
 }
 
-// Sleeps to the absolute host time t_s (on wall_s()'s clock): a deadline, not a duration, so a
-// writer preempted between reading the clock and sleeping still wakes on time.
+// Sleeps to the absolute host time t_s on wall_s()'s clock.
 void sleep_until_wall(double t_s) {
-  const double at = start_s() + t_s;
-  timespec deadline{};
-  deadline.tv_sec = static_cast<time_t>(std::floor(at));
-  deadline.tv_nsec = static_cast<long>((at - std::floor(at)) * 1e9);
-  if (deadline.tv_nsec >= 1000000000L) {
-    deadline.tv_nsec -= 1000000000L;
-    ++deadline.tv_sec;
-  }
-  while (::clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
-  }
+  ai::precise_sleep::sleep_until(CLOCK_MONOTONIC, start_s() + t_s);
 }
-
-// While alive, the calling thread's timer slack is 1 ns (Linux lets a normal thread's timed
-// sleeps end up to 50 us late by default, to group wake-ups): a device writes on its own clock.
-class PreciseWakeUps {
- public:
-  PreciseWakeUps() : before_(::prctl(PR_GET_TIMERSLACK, 0, 0, 0, 0)) {
-    ::prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);
-  }
-  ~PreciseWakeUps() {
-    if (before_ > 0) ::prctl(PR_SET_TIMERSLACK, static_cast<unsigned long>(before_), 0, 0, 0);
-  }
-  PreciseWakeUps(const PreciseWakeUps&) = delete;
-  PreciseWakeUps& operator=(const PreciseWakeUps&) = delete;
-
- private:
-  int before_;
-};
 
 ai::SerialLineFormat format(const std::string& columns, const std::string& separator = ",") {
   ai::SerialLineFormat f;
@@ -181,7 +153,7 @@ struct Written {
 std::map<long, Written> write_samples(Device& dev, const DeviceProgram& p, double host0,
                                       long k_begin, long k_end, std::mt19937_64* rng,
                                       const std::function<std::string(long)>& garbage = {}) {
-  const PreciseWakeUps precise;
+  const ai::precise_sleep::PreciseWakeUps precise;
   std::map<long, Written> out;
   std::exponential_distribution<double> jitter(1.0 / p.jitter_mean_s);
   std::uniform_real_distribution<double> stall(0.003, 0.008);

@@ -44,8 +44,6 @@ bool settled_at(int position, int steps) {
          static_cast<int>(last_command.phase) * steps + static_cast<int>(last_command.step) ==
              position;
 }
-// Holds or releases the simulated clock (sim_clock ~pause); *at_s: the clock's time then (its
-// answer: "paused at 123.456000 s").
 // A persistent connection to sim_clock ~pause, made before the test waits for its moment: holding
 // the clock then costs no master lookup and no TCP connect (on a loaded machine those took long
 // enough to let the clock run far into the dwell).
@@ -54,6 +52,8 @@ ros::ServiceClient& pause_client() {
       ros::NodeHandle().serviceClient<std_srvs::SetBool>("/sim_clock/pause", true);
   return client;
 }
+// Holds or releases the simulated clock (sim_clock ~pause); *at_s: the clock's time then (its
+// answer: "paused at 123.456000 s").
 bool pause_clock(bool pause, double* at_s = nullptr) {
   std_srvs::SetBool srv;
   srv.request.data = pause;

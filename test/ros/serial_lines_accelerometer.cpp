@@ -5,13 +5,11 @@
 #include <pty.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
-#include <sys/prctl.h>
 #include <termios.h>
 #include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -21,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/precise_sleep.h"
 #include "wait_for.h"
 
 namespace {
@@ -112,20 +111,6 @@ class Pty {
   int master_ = -1, slave_ = -1;
 };
 
-// Sleeps to the absolute wall time t_s (ros::WallTime's clock, CLOCK_REALTIME), with a timer
-// slack of 1 ns while it sleeps (a normal thread's timed sleeps may end 50 us late by default):
-// the device writes on a deadline, not after a duration computed before it was preempted.
-void sleep_until_wall(double t_s) {
-  const int slack = ::prctl(PR_GET_TIMERSLACK, 0, 0, 0, 0);
-  ::prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);
-  timespec deadline{};
-  deadline.tv_sec = static_cast<time_t>(std::floor(t_s));
-  deadline.tv_nsec = std::min(999999999L, static_cast<long>((t_s - std::floor(t_s)) * 1e9));
-  while (::clock_nanosleep(CLOCK_REALTIME, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
-  }
-  if (slack > 0) ::prctl(PR_SET_TIMERSLACK, static_cast<unsigned long>(slack), 0, 0, 0);
-}
-
 struct Truth {
   double host_s;
   std::string y, z;  // as printed
@@ -141,10 +126,12 @@ std::map<long, Truth> play(Pty& pty, double host0, long k0, long k1, std::mt1993
   std::map<long, Truth> truth;
   std::exponential_distribution<double> jitter(1.0 / 0.0003);
   const char* junk[] = {"\x01\x02\xfe\xff\n", "1.0,2.0\n", "41.0,x,1,2\n"};
+  const accel_intrinsics::precise_sleep::PreciseWakeUps precise;
   for (long k = k0; k < k1; ++k) {
     const double device_s = k / 500.0;
     const double host = host0 + device_s / (1.0 + 1e-4);
-    sleep_until_wall(host + jitter(*rng));
+    // A deadline on ros::WallTime's clock (CLOCK_REALTIME).
+    accel_intrinsics::precise_sleep::sleep_until(CLOCK_REALTIME, host + jitter(*rng));
     char y[32], z[32], line[128];
     std::snprintf(y, sizeof y, "%.5f", -0.5 + 1e-3 * (k % 101));
     std::snprintf(z, sizeof z, "%.0f", 16384.0 + (k % 7));  // counts: any unit

@@ -30,6 +30,7 @@
 #include "accel_intrinsics/core/dwells/position_table.h"
 #include "accel_intrinsics/core/model/effects.h"
 #include "accel_intrinsics/core/model/protocol.h"
+#include "written_runs.h"
 
 namespace accel_intrinsics {
 namespace detection_theory {
@@ -61,14 +62,8 @@ inline std::vector<Dwell> dwells_of(const core::PositionTable& table,
   return out;
 }
 
-// Eq. (4) unit specific force and its derivative with respect to the angle.
-inline Eigen::Vector3d unit_force(core::Phase p, double a) {
-  switch (p) {
-    case core::Phase::X: return Eigen::Vector3d(0.0, std::sin(a), std::cos(a));
-    case core::Phase::Y: return Eigen::Vector3d(std::sin(a), 0.0, std::cos(a));
-    default: return Eigen::Vector3d(std::sin(a), std::cos(a), 0.0);
-  }
-}
+// Eq. (4) unit specific force (written_runs.h) and its derivative with respect to the angle.
+using written_runs::unit_force;
 inline Eigen::Vector3d unit_force_dalpha(core::Phase p, double a) {
   switch (p) {
     case core::Phase::X: return Eigen::Vector3d(0.0, std::cos(a), -std::sin(a));
